@@ -1,0 +1,100 @@
+//! Element-wise evaluation of scalar solvers over arrays.
+//!
+//! The design functions are cheap (tens of nanoseconds), so small batches run
+//! serially; large ones are split into chunks on rayon's global pool (never a
+//! pool per call). The result of element `i` never depends on the chunking,
+//! so output is bit-identical for any thread count.
+
+use crate::{Error, Result};
+use rayon::prelude::*;
+
+/// Below this many elements a batch runs on the calling thread.
+pub const PARALLEL_THRESHOLD: usize = 16_384;
+const CHUNK: usize = 4_096;
+
+/// Apply `f` to each element of `inputs` (all slices of equal length) and
+/// write its `width` outputs to `out[i * width..(i + 1) * width]`.
+///
+/// Returns the first error in index order, tagged with the element index.
+pub fn map_rows<const NIN: usize, F>(
+    inputs: [&[f64]; NIN],
+    width: usize,
+    out: &mut [f64],
+    f: F,
+) -> std::result::Result<(), (usize, Error)>
+where
+    F: Fn([f64; NIN], &mut [f64]) -> Result<()> + Sync,
+{
+    let n = inputs.first().map_or(0, |s| s.len());
+    if inputs.iter().any(|s| s.len() != n) || out.len() != n * width {
+        return Err((
+            0,
+            Error::Shape(format!(
+                "inputs of lengths {:?} and output of length {} (width {width})",
+                inputs.iter().map(|s| s.len()).collect::<Vec<_>>(),
+                out.len()
+            )),
+        ));
+    }
+    if width == 0 {
+        return Ok(());
+    }
+    let run_chunk = |start: usize, chunk: &mut [f64]| -> std::result::Result<(), (usize, Error)> {
+        for (j, row) in chunk.chunks_exact_mut(width).enumerate() {
+            let i = start + j;
+            let args: [f64; NIN] = std::array::from_fn(|k| inputs[k][i]);
+            f(args, row).map_err(|e| (i, e))?;
+        }
+        Ok(())
+    };
+    if n < PARALLEL_THRESHOLD {
+        run_chunk(0, out)
+    } else {
+        let results: Vec<std::result::Result<(), (usize, Error)>> = out
+            .par_chunks_mut(CHUNK * width)
+            .enumerate()
+            .map(|(c, chunk)| run_chunk(c * CHUNK, chunk))
+            .collect();
+        results.into_iter().collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parallel_and_serial_agree_and_first_error_wins() {
+        let n = PARALLEL_THRESHOLD * 3 + 17;
+        let x: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let mut out = vec![0.0; 2 * n];
+        map_rows([&x], 2, &mut out, |[a], o| {
+            o[0] = a * 2.0;
+            o[1] = a + 1.0;
+            Ok(())
+        })
+        .unwrap();
+        for i in 0..n {
+            assert_eq!(out[2 * i], 2.0 * i as f64);
+            assert_eq!(out[2 * i + 1], i as f64 + 1.0);
+        }
+        let err = map_rows([&x], 1, &mut out[..n], |[a], o| {
+            if a >= 20_000.0 {
+                Err(Error::domain("x", "small", a))
+            } else {
+                o[0] = a;
+                Ok(())
+            }
+        })
+        .unwrap_err();
+        assert_eq!(err.0, 20_000);
+    }
+
+    #[test]
+    fn length_mismatch_is_an_error() {
+        let a = [1.0, 2.0];
+        let b = [1.0];
+        let mut out = [0.0; 2];
+        assert!(map_rows([&a[..], &b[..]], 1, &mut out, |_, _| Ok(())).is_err());
+    }
+}

@@ -1,0 +1,22 @@
+//! `abkit-core`: the pure-Rust core of abkit.
+//!
+//! No Python here: the functions work on plain `f64` values and slices and
+//! return [`Error`] for inputs they cannot handle. The Python bindings
+//! (`abkit-py`) are a thin layer over these functions.
+//!
+//! Modules, one per idea:
+//! - [`alphabeta`]: the alpha-beta filter of Painter, Kerstetter & Jowers
+//!   (1990): Kalman design from the SNR, deterministic design from damping,
+//!   natural frequency or noise bandwidth, and the steady-state analysis of
+//!   any gains (covariances, poles, lag, variance reduction).
+//! - [`batch`]: element-wise evaluation of a scalar solver over arrays,
+//!   in parallel on rayon's global pool.
+
+pub mod alphabeta;
+pub mod batch;
+mod error;
+
+pub use error::Error;
+
+/// Result alias used throughout the crate.
+pub type Result<T> = std::result::Result<T, Error>;
