@@ -1,0 +1,18 @@
+"""abkit: design, analyse and run fixed-gain tracking filters.
+
+Alpha-beta, alpha-beta-gamma and the steady-state Kalman filters they are
+the limits of, with a Rust core.
+
+Modules
+-------
+alphabeta
+    Alpha-beta design (Kalman and deterministic) and analysis.
+plot
+    Figures (the design nomograph); needs ``abkit[plot]``.
+"""
+
+from . import alphabeta
+from ._abkit import __version__
+from .alphabeta import AlphaBeta
+
+__all__ = ["alphabeta", "AlphaBeta", "__version__"]

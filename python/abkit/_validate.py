@@ -1,0 +1,84 @@
+"""Argument validation shared by every public function.
+
+Messages always name the argument, say what is allowed, and show the
+offending value (and its index for arrays).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence, Tuple
+
+import numpy as np
+
+__all__ = ["as_float_array", "broadcast", "check_positive", "check_open_interval"]
+
+
+def as_float_array(name: str, value: Any) -> np.ndarray:
+    """Convert ``value`` to a float64 array, rejecting non-real input.
+
+    Raises
+    ------
+    TypeError
+        If ``value`` is not a real number or an array of real numbers
+        (bool, integer and floating dtypes are accepted; complex, object,
+        string and datetime are not).
+    """
+    if isinstance(value, (str, bytes)):
+        raise TypeError(f"{name} must be a real number or array of real numbers, got {type(value).__name__}")
+    try:
+        arr = np.asarray(value)
+    except Exception as exc:  # pragma: no cover - numpy raises for ragged input
+        raise TypeError(f"{name} must be a real number or array of real numbers: {exc}") from None
+    if arr.dtype.kind not in "biuf":
+        raise TypeError(
+            f"{name} must be a real number or array of real numbers "
+            f"(bool, integer or float dtype), got dtype {arr.dtype}"
+        )
+    return arr.astype(np.float64, copy=False)
+
+
+def _where(arr: np.ndarray, bad: np.ndarray) -> str:
+    if arr.ndim == 0:
+        return f"got {arr.item()!r}"
+    idx = tuple(int(i) for i in np.argwhere(bad)[0])
+    n = int(bad.sum())
+    more = f" (and {n - 1} more)" if n > 1 else ""
+    return f"got {arr[idx]!r} at index {idx}{more}"
+
+
+def check_positive(name: str, arr: np.ndarray) -> None:
+    """Raise ``ValueError`` unless every element is finite and > 0."""
+    bad = ~(np.isfinite(arr) & (arr > 0))
+    if bad.any():
+        raise ValueError(f"{name} must be finite and > 0, {_where(arr, bad)}")
+
+
+def check_nonnegative(name: str, arr: np.ndarray) -> None:
+    """Raise ``ValueError`` unless every element is finite and >= 0."""
+    bad = ~(np.isfinite(arr) & (arr >= 0))
+    if bad.any():
+        raise ValueError(f"{name} must be finite and >= 0, {_where(arr, bad)}")
+
+
+def check_open_interval(name: str, arr: np.ndarray, lo: float, hi: float) -> None:
+    """Raise ``ValueError`` unless ``lo < arr < hi`` element-wise."""
+    bad = ~((arr > lo) & (arr < hi))
+    if bad.any():
+        raise ValueError(f"{name} must be in the open interval ({lo:g}, {hi:g}), {_where(arr, bad)}")
+
+
+def broadcast(names: Sequence[str], arrays: Sequence[np.ndarray]) -> Tuple[Tuple[int, ...], list]:
+    """Broadcast ``arrays`` together; return the shape and flat contiguous copies.
+
+    Raises
+    ------
+    ValueError
+        If the shapes do not broadcast; the message lists every argument's shape.
+    """
+    try:
+        b = np.broadcast_arrays(*arrays)
+    except ValueError:
+        shapes = ", ".join(f"{n} {a.shape}" for n, a in zip(names, arrays))
+        raise ValueError(f"arguments do not broadcast together: {shapes}") from None
+    shape = b[0].shape if b else ()
+    return shape, [np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in b]
