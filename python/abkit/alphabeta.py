@@ -43,6 +43,7 @@ References
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
@@ -359,13 +360,11 @@ class AlphaBeta:
         check_positive("sigma_v", sv)
         t = self._period(T)
         c = self.covariance_filtered if kind == "filtered" else self.covariance_predicted
-        scale = np.array([[1.0, 0.0], [0.0, 0.0]])
         s = np.empty(np.broadcast_shapes(sv.shape, t.shape) + (2, 2))
         s[..., 0, 0] = sv**2
         s[..., 0, 1] = sv**2 / t
         s[..., 1, 0] = sv**2 / t
         s[..., 1, 1] = sv**2 / t**2
-        del scale
         return c * s
 
     def error_covariance(self, r_true: ArrayLike) -> ErrorCovariance:
@@ -376,15 +375,22 @@ class AlphaBeta:
         return error_covariance(self._raw("alpha"), self._raw("beta"), r_true)
 
     def to_dict(self) -> Dict[str, Any]:
-        """All fields as plain Python values (lists for arrays); JSON-serialisable."""
+        """All fields as plain Python values (lists for arrays); JSON-serialisable.
+
+        Non-finite values (``inf`` for quantities that do not exist, e.g. the
+        covariances of an unstable filter) become ``None``; complex poles
+        become ``[re, im]`` pairs.
+        """
 
         def conv(x: Any) -> Any:
             if isinstance(x, np.ndarray):
                 if np.iscomplexobj(x):
-                    return [[float(v.real), float(v.imag)] for v in x.reshape(-1)] if x.ndim > 1 else [[float(v.real), float(v.imag)] for v in x]
-                return x.tolist()
+                    return conv(np.stack([x.real, x.imag], axis=-1))
+                return [conv(v) for v in x] if x.ndim > 0 else conv(x.item())
             if isinstance(x, (np.floating, float)):
-                return float(x)
+                return float(x) if math.isfinite(x) else None
+            if isinstance(x, np.bool_):
+                return bool(x)
             return x
 
         d: Dict[str, Any] = {"design": self.design, "T": self.T}
@@ -453,6 +459,19 @@ _PUBLIC = (
 )
 
 
+def _call(func: Any, shape: Tuple[int, ...], *flat: np.ndarray) -> np.ndarray:
+    """Call a Rust binding; restate its flat element index in the broadcast shape."""
+    try:
+        return np.asarray(func(*flat))
+    except ValueError as exc:
+        msg = str(exc)
+        m = re.search(r" \(at flat index (\d+)\)$", msg)
+        if m is None:
+            raise
+        where = "" if shape == () else f" (at index {tuple(int(i) for i in np.unravel_index(int(m.group(1)), shape))})"
+        raise ValueError(msg[: m.start()] + where) from None
+
+
 def _run(func: Any, names: Tuple[str, ...], values: Tuple[Any, ...], checks: Dict[str, str], T: Any = None, design: str = "") -> AlphaBeta:
     arrays = [as_float_array(n, v) for n, v in zip(names, values)]
     for n, a in zip(names, arrays):
@@ -462,7 +481,7 @@ def _run(func: Any, names: Tuple[str, ...], values: Tuple[Any, ...], checks: Dic
         elif kind == "unit":
             check_open_interval(n, a, 0.0, 1.0)
     shape, flat = broadcast(names, arrays)
-    rows = func(*flat)
+    rows = _call(func, shape, *flat)
     t = float(T) if T is not None and np.ndim(T) == 0 else None
     return AlphaBeta(np.asarray(rows), shape, t, design)
 
@@ -785,6 +804,6 @@ def error_covariance(alpha: ArrayLike, beta: ArrayLike, r_true: ArrayLike) -> Er
     check_positive("beta", arrays[1])
     check_nonnegative("r_true", arrays[2])
     shape, flat = broadcast(names, arrays)
-    rows = np.asarray(_abkit.alphabeta_error_covariance(*flat))
+    rows = _call(_abkit.alphabeta_error_covariance, shape, *flat)
     f = rows.reshape(shape + (6,))
     return ErrorCovariance(_sym(f[..., 0], f[..., 1], f[..., 2]), _sym(f[..., 3], f[..., 4], f[..., 5]))

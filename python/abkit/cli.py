@@ -1,0 +1,170 @@
+"""The ``abkit`` command line.
+
+Commands
+--------
+abkit design alphabeta ...
+    Design or analyse an alpha-beta filter and print it as a table (or JSON).
+abkit demo
+    The paper's GPS car example: design table and the design nomograph PNG.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import List, Optional, Sequence
+
+from . import __version__
+from . import alphabeta as ab
+
+__all__ = ["main"]
+
+_SOURCES = (
+    ("noise", ("sigma_w", "sigma_v", "T")),
+    ("snr", ("snr",)),
+    ("snr_db", ("snr_db",)),
+    ("tracking_index", ("tracking_index",)),
+    ("tracking_error", ("tracking_error",)),
+    ("bandwidth", ("bandwidth",)),
+    ("natural_frequency", ("omega_n", "T")),
+    ("gains", ("alpha", "beta")),
+)
+
+
+def _design_from_args(p: argparse.ArgumentParser, a: argparse.Namespace) -> ab.AlphaBeta:
+    given = {k for k in ("sigma_w", "sigma_v", "snr", "snr_db", "tracking_index", "tracking_error",
+                         "bandwidth", "omega_n", "alpha", "beta") if getattr(a, k) is not None}
+    damping = a.damping if a.damping is not None else ab.KALMAN_DAMPING
+    if a.damping is not None and not given & {"bandwidth", "omega_n"}:
+        p.error("--damping applies only to --bandwidth and --omega-n designs")
+
+    def only(*names: str) -> bool:
+        return given == set(names)
+
+    if only("sigma_w", "sigma_v"):
+        if a.T is None:
+            p.error("--sigma-w/--sigma-v need -T")
+        return ab.from_noise(a.sigma_w, a.sigma_v, a.T)
+    if only("snr"):
+        d = ab.from_snr(a.snr)
+    elif only("snr_db"):
+        d = ab.from_snr(10.0 ** (a.snr_db / 10.0))
+    elif only("tracking_index"):
+        d = ab.from_tracking_index(a.tracking_index)
+    elif only("tracking_error"):
+        d = ab.from_tracking_error(a.tracking_error)
+    elif only("bandwidth"):
+        d = ab.from_bandwidth(a.bandwidth, damping)
+    elif only("omega_n"):
+        if a.T is None:
+            p.error("--omega-n needs -T")
+        return ab.from_natural_frequency(a.omega_n, a.T, damping)
+    elif only("alpha", "beta"):
+        d = ab.analyze(a.alpha, a.beta)
+    else:
+        p.error(
+            "give exactly one design source: --sigma-w/--sigma-v/-T, --snr, --snr-db, "
+            "--tracking-index, --tracking-error, --bandwidth [--damping], "
+            "--omega-n/-T [--damping], or --alpha/--beta"
+        )
+    if a.T is not None:
+        d.T = a.T
+    return d
+
+
+def _design_alphabeta(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
+    try:
+        d = _design_from_args(p, a)
+    except (ValueError, TypeError) as exc:
+        print(f"abkit design alphabeta: error: {exc}", file=sys.stderr)
+        return 2
+    if a.json:
+        print(json.dumps(d.to_dict(), indent=2, allow_nan=False))
+    else:
+        print(d.table())
+    return 0
+
+
+def _demo(a: argparse.Namespace) -> int:
+    import os
+
+    out = a.out
+    os.makedirs(out, exist_ok=True)
+    sigma_w, sigma_v, T = 3.2, 32.0, 0.1
+    print("abkit demo: the GPS car of Painter, Kerstetter & Jowers (1990)")
+    print(f"  sigma_w = {sigma_w} ft/s^2 (driver lateral acceleration), sigma_v = {sigma_v} ft (GPS), T = {T} s\n")
+    car = ab.from_noise(sigma_w, sigma_v, T)
+    print(car.table())
+    print(f"  rms tracking error = sigma_v*sqrt(alpha) = {sigma_v * math.sqrt(car.alpha):.4g} ft\n")
+    chart = ab.from_snr(0.1)
+    print("The paper prints alpha=0.68, beta=0.375, B_N*T=0.175 (read off its nomograph at '-20 dB').")
+    print("Those readings match the Kalman design at r = 0.1, not the car's r = 2.5e-7 of eq (9):")
+    print(f"  r = 0.1: alpha={chart.alpha:.4f}, beta={chart.beta:.4f}, B_N*T={chart.bandwidth_T:.4f}"
+          "  (see docs/errata.md)\n")
+    if a.no_plot:
+        return 0
+    try:
+        from . import plot
+
+        plt = plot._pyplot()
+    except ImportError as exc:
+        print(f"abkit demo: {exc}; skipping the nomograph (use --no-plot to silence)", file=sys.stderr)
+        return 1
+    ax = plot.nomograph(design=car)
+    path = os.path.join(out, "abkit_nomograph.png")
+    ax.figure.savefig(path, dpi=120)
+    plt.close(ax.figure)
+    print(f"wrote the design nomograph with the car's design marked: {path}")
+    return 0
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="abkit", description="Design, analyse and run fixed-gain tracking filters.")
+    p.add_argument("--version", action="version", version=f"abkit {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    d = sub.add_parser("design", help="design a filter")
+    dsub = d.add_subparsers(dest="family", required=True)
+    q = dsub.add_parser(
+        "alphabeta",
+        help="alpha-beta design (Kalman or deterministic) or analysis of given gains",
+        description="Design an alpha-beta filter from one source and print it. "
+        "Sources: physical noise (--sigma-w --sigma-v -T), SNR r (--snr or --snr-db), "
+        "tracking index (--tracking-index), normalised tracking error (--tracking-error), "
+        "noise bandwidth x period (--bandwidth [--damping]), natural frequency "
+        "(--omega-n -T [--damping]), or analyse gains (--alpha --beta).",
+    )
+    q.add_argument("--sigma-w", type=float, help="white acceleration std (e.g. ft/s^2)")
+    q.add_argument("--sigma-v", type=float, help="measurement noise std (e.g. ft)")
+    q.add_argument("-T", "--period", dest="T", type=float, help="sampling period (s)")
+    q.add_argument("--snr", type=float, help="r = ((sigma_w T^2/2)/sigma_v)^2")
+    q.add_argument("--snr-db", type=float, help="10 log10 r")
+    q.add_argument("--tracking-index", type=float, help="Kalata's lambda = sigma_w T^2 / sigma_v")
+    q.add_argument("--tracking-error", type=float, help="sigma_t^2/sigma_v^2 in (0, 1)")
+    q.add_argument("--bandwidth", type=float, help="noise bandwidth x period B_N*T")
+    q.add_argument("--omega-n", type=float, help="natural frequency (rad/s)")
+    q.add_argument("--damping", type=float, help="damping ratio (default 1/sqrt(2))")
+    q.add_argument("--alpha", type=float, help="position gain (with --beta: analyse)")
+    q.add_argument("--beta", type=float, help="velocity gain x T")
+    q.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    q.set_defaults(func=lambda a: _design_alphabeta(q, a))
+
+    dm = sub.add_parser("demo", help="the paper's GPS car example and the design nomograph")
+    dm.add_argument("--out", default=".", help="directory for the PNG (default: current directory)")
+    dm.add_argument("--no-plot", action="store_true", help="print the tables only")
+    dm.set_defaults(func=_demo)
+    return p
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Entry point of the ``abkit`` console script."""
+    args: List[str] = list(sys.argv[1:] if argv is None else argv)
+    p = _parser()
+    ns = p.parse_args(args)
+    return int(ns.func(ns))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
