@@ -1,0 +1,105 @@
+"""The ``abkit`` console script. Expected numbers come from Kalata's closed
+forms (alpha from the tracking index), written out here independently of
+abkit; relative tolerance 1e-12 unless stated."""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+RTOL = 1e-12
+
+
+def run(*args: str, cwd: str | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "abkit", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def kalata(lam: float) -> tuple:
+    """Kalata (1984): alpha and beta of the Kalman alpha-beta filter for index lam."""
+    alpha = (-(lam**2) - 8 * lam + (lam + 4) * math.sqrt(lam**2 + 8 * lam)) / 8
+    beta = (lam**2 + 4 * lam - lam * math.sqrt(lam**2 + 8 * lam)) / 4
+    return alpha, beta
+
+
+def test_design_json_matches_kalata() -> None:
+    out = run("design", "alphabeta", "--sigma-w", "3.2", "--sigma-v", "32", "-T", "0.1", "--json")
+    assert out.returncode == 0, out.stderr
+    d = json.loads(out.stdout)
+    lam = 3.2 * 0.1**2 / 32
+    a, b = kalata(lam)
+    # Kalata's printed form cancels at small lam: 1e-9 relative at lam = 1e-3.
+    assert d["alpha"] == pytest.approx(a, rel=1e-9)
+    assert d["beta"] == pytest.approx(b, rel=1e-9)
+    assert d["g2"] == pytest.approx(b / 0.1, rel=1e-9)
+    assert d["r"] == pytest.approx((lam / 2) ** 2, rel=RTOL)
+    assert d["kalman_optimal"] is True and d["stable"] is True
+
+
+@pytest.mark.parametrize(
+    "args, lam",
+    [
+        (["--snr", "0.25"], 1.0),
+        (["--snr-db", "0"], 2.0),
+        (["--tracking-index", "0.7"], 0.7),
+    ],
+)
+def test_design_sources(args: list, lam: float) -> None:
+    out = run("design", "alphabeta", *args, "--json")
+    assert out.returncode == 0, out.stderr
+    d = json.loads(out.stdout)
+    a, b = kalata(lam)
+    assert d["alpha"] == pytest.approx(a, rel=1e-12)
+    assert d["beta"] == pytest.approx(b, rel=1e-12)
+
+
+def test_design_bandwidth_and_analysis() -> None:
+    d = json.loads(run("design", "alphabeta", "--bandwidth", "0.1", "--damping", "0.8", "--json").stdout)
+    x = math.sqrt(d["beta"])
+    # eq (16) at the returned omega_n*T reproduces the requested bandwidth
+    assert x * (1 + (1.6 - x) ** 2) / 6.4 == pytest.approx(0.1, rel=1e-12)
+    assert d["alpha"] == pytest.approx(2 * 0.8 * x - x * x / 2, rel=1e-12)
+    a = json.loads(run("design", "alphabeta", "--alpha", "0.5", "--beta", "3.5", "--json").stdout)
+    assert a["stable"] is False and a["covariance_filtered"][0][0] is None
+
+
+def test_table_output() -> None:
+    out = run("design", "alphabeta", "--tracking-error", "0.5")
+    assert out.returncode == 0
+    assert "alpha (g1)" in out.stdout and "0.5" in out.stdout
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--bandwidth", "0.3"], "bn_t"),
+        (["--snr", "-1"], "r must be"),
+        (["--sigma-w", "1", "--sigma-v", "1"], "-T"),
+        (["--snr", "1", "--bandwidth", "0.1"], "exactly one"),
+        (["--tracking-error", "1.5"], "ratio"),
+    ],
+)
+def test_design_errors_exit_2(args: list, needle: str) -> None:
+    out = run("design", "alphabeta", *args)
+    assert out.returncode == 2
+    assert needle in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+def test_demo_writes_nomograph(tmp_path: pathlib.Path) -> None:
+    pytest.importorskip("matplotlib")
+    out = run("demo", "--out", str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    png = tmp_path / "abkit_nomograph.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    a, _ = kalata(3.2 * 0.01 / 32)
+    assert f"{a:.10g}"[:8] in out.stdout
+
+
+def test_demo_help() -> None:
+    out = run("demo", "--help")
+    assert out.returncode == 0 and "--out" in out.stdout

@@ -1,0 +1,61 @@
+"""Packaging and documentation checks: doctests, the .pyi stub, README/CI
+consistency, and the errata check script."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+import pathlib
+import re
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("module", ["abkit.alphabeta", "abkit.plot", "abkit.cli"])
+def test_doctests(module: str) -> None:
+    """Every docstring example runs and prints what it shows."""
+    pytest.importorskip("matplotlib")
+    mod = importlib.import_module(module)
+    res = doctest.testmod(mod, optionflags=doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS)
+    assert res.failed == 0
+    if module != "abkit.cli":
+        assert res.attempted > 0
+
+
+def test_stub_matches_extension_module() -> None:
+    """The hand-written _abkit.pyi agrees with the compiled module (mypy.stubtest)."""
+    pytest.importorskip("mypy")
+    out = subprocess.run(
+        [sys.executable, "-m", "mypy.stubtest", "abkit._abkit"],
+        capture_output=True,
+        text=True,
+        cwd=str(ROOT / "tests"),
+    )
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
+def _readme_commands() -> list:
+    text = (ROOT / "README.md").read_text()
+    setup = text.split("## Set up", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"```sh\n(.*?)\n```", setup, flags=re.S)
+
+
+def test_readme_has_exactly_two_setup_commands_and_ci_runs_the_test_one() -> None:
+    cmds = _readme_commands()
+    assert len(cmds) == 2, cmds
+    assert "abkit demo" in cmds[0]
+    assert "pytest" in cmds[1] and "cargo test" in cmds[1]
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()
+    assert ci[-1].strip() == cmds[1].strip(), "the last line of .ci/run must be the README's test command"
+
+
+def test_errata_check_script_passes() -> None:
+    """docs/errata_checks.py re-derives every erratum numerically and exits 0."""
+    pytest.importorskip("scipy")
+    pytest.importorskip("mpmath")
+    out = subprocess.run([sys.executable, str(ROOT / "docs" / "errata_checks.py")], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
