@@ -238,7 +238,10 @@ pub fn error_covariance(alpha: f64, beta: f64, r_true: f64) -> Result<Covariance
     if !jury_stable(alpha, beta) {
         return Err(Error::domain(
             "beta",
-            format!("< 4 - 2*alpha = {} for a stable filter (no steady state exists otherwise)", 4.0 - 2.0 * alpha),
+            format!(
+                "< 4 - 2*alpha = {} for a stable filter (no steady state exists otherwise)",
+                4.0 - 2.0 * alpha
+            ),
             beta,
         ));
     }
@@ -536,7 +539,7 @@ pub fn invert_bandwidth(bn_t: f64, damping: f64) -> Result<f64> {
         }
         let df = bandwidth_t_dx(x, d);
         let mut xn = x - f / df;
-        if !(xn > lo && xn < hi) || !xn.is_finite() {
+        if !(xn > lo && xn < hi && xn.is_finite()) {
             xn = 0.5 * (lo + hi);
         }
         if (xn - x).abs() <= 4.0 * f64::EPSILON * x.abs() || hi - lo <= 4.0 * f64::EPSILON * hi {

@@ -102,7 +102,9 @@ fn alphabeta_from_bandwidth<'py>(
     bn_t: PyReadonlyArray1<'py, f64>,
     damping: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    design_rows(py, [bn_t, damping], |[b, d]| AlphaBeta::from_bandwidth(b, d))
+    design_rows(py, [bn_t, damping], |[b, d]| {
+        AlphaBeta::from_bandwidth(b, d)
+    })
 }
 
 /// Deterministic alpha-beta design from omega_n, T and damping.
