@@ -154,7 +154,11 @@ class AlphaBeta:
         Damping ratio and ``omega_n T`` of the impulse-invariant continuous
         equivalent, eq (15). Kalman designs have damping ``1/sqrt(2)``.
     bandwidth_T : float or ndarray
-        One-sided noise bandwidth (Hz) times ``T``, eq (16).
+        One-sided noise bandwidth (Hz) times ``T``, eq (16), of the continuous
+        prototype.
+    bandwidth_T_discrete : float or ndarray
+        Equivalent noise bandwidth of the discrete filter times ``T``
+        (half the position variance reduction ratio).
     tracking_error_ratio : float or ndarray
         Steady-state filtered position error variance over ``sigma_v^2`` at the
         model SNR ``r``; equals ``alpha`` for Kalman designs (eq (14)).
@@ -247,6 +251,17 @@ class AlphaBeta:
     @property
     def bandwidth_T(self) -> FloatOrArray:
         return self._get("bandwidth_T")
+
+    @property
+    def bandwidth_T_discrete(self) -> FloatOrArray:
+        """Equivalent noise bandwidth of the discrete filter times ``T``.
+
+        Half the filtered-position variance reduction ratio (the sum of the
+        squared impulse response); unlike eq (16) (the continuous prototype)
+        this is the bandwidth that sets the measurement-noise variance of
+        the filtered position. ``inf`` for an unstable filter.
+        """
+        return _out(0.5 * self._raw("vrr_position_filtered"))
 
     @property
     def tracking_error_ratio(self) -> FloatOrArray:
@@ -454,7 +469,7 @@ class AlphaBeta:
 
 _PUBLIC = (
     "alpha", "beta", "r", "snr_db", "tracking_index", "kalman_optimal", "damping",
-    "omega_n_T", "bandwidth_T", "tracking_error_ratio", "covariance_filtered",
+    "omega_n_T", "bandwidth_T", "bandwidth_T_discrete", "tracking_error_ratio", "covariance_filtered",
     "covariance_predicted", "b1_T", "b2_T2", "K_T", "zero_T", "poles", "stable", "valid",
 )
 
