@@ -59,3 +59,15 @@ def test_errata_check_script_passes() -> None:
     pytest.importorskip("mpmath")
     out = subprocess.run([sys.executable, str(ROOT / "docs" / "errata_checks.py")], capture_output=True, text=True)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+
+
+def test_package_type_checks() -> None:
+    """The public Python layer type-checks against the hand-written stub."""
+    pytest.importorskip("mypy")
+    out = subprocess.run(
+        [sys.executable, "-m", "mypy", "--ignore-missing-imports", "--no-incremental", str(ROOT / "python" / "abkit")],
+        capture_output=True,
+        text=True,
+        cwd=str(ROOT),
+    )
+    assert out.returncode == 0, out.stdout + out.stderr
