@@ -135,11 +135,30 @@ fn check_pos(name: &'static str, x: f64) -> Result<f64> {
 }
 
 /// `(u, v) = (sqrt(1 - alpha), 1 - sqrt(1 - alpha))` of the Kalman design with
-/// tracking index `lambda`, without cancellation.
+/// tracking index `lambda`, without cancellation or intermediate overflow.
+///
+/// `u = 4 / (lambda + 4 + S)`, `v = (lambda + S) / (lambda + 4 + S)` with
+/// `S = sqrt(lambda (lambda + 8))`; for `lambda >= 1` the same is evaluated as
+/// `w = (4/lambda) / (1 + sqrt(1 + 8/lambda))`, `u = w / (1 + w)`, `v = 1 / (1 + w)`.
 pub fn kalman_uv_from_lambda(lambda: f64) -> (f64, f64) {
-    let s = lambda.sqrt() * (lambda + 8.0).sqrt();
-    let d = lambda + 4.0 + s;
-    (4.0 / d, (lambda + s) / d)
+    if lambda >= 1.0 {
+        let w = (4.0 / lambda) / (1.0 + (1.0 + 8.0 / lambda).sqrt());
+        (w / (1.0 + w), 1.0 / (1.0 + w))
+    } else {
+        let s = lambda.sqrt() * (lambda + 8.0).sqrt();
+        let d = lambda + 4.0 + s;
+        (4.0 / d, (lambda + s) / d)
+    }
+}
+
+/// `alpha = 1 - u^2 = v (1 + u)`, evaluated in the form that rounds correctly
+/// (never above 1).
+fn kalman_alpha(u: f64, v: f64) -> f64 {
+    if u < 0.5 {
+        1.0 - u * u
+    } else {
+        v * (1.0 + u)
+    }
 }
 
 /// Kalman `beta` for a given `alpha` in (0, 1): `2 (alpha / (1 + sqrt(1 - alpha)))^2`.
@@ -156,8 +175,12 @@ pub fn kalman_beta(alpha: f64) -> f64 {
 /// with `delta` from (15) substituted; it has no square root and no
 /// cancellation.
 pub fn bandwidth_t_from_gains(alpha: f64, beta: f64) -> f64 {
-    let c = alpha - 0.5 * beta;
-    (beta + c * c) / (4.0 * alpha + 2.0 * beta)
+    // Scaled by m = max(alpha, beta) so that nothing overflows for huge gains.
+    let m = alpha.max(beta);
+    let (a, b) = (alpha / m, beta / m);
+    let c = a - 0.5 * b;
+    let den = 4.0 * a + 2.0 * b;
+    b / den + m * (c * (c / den))
 }
 
 /// Eq (16) as printed: `B_N T = sqrt(beta) / (8 delta) * (1 + (2 delta - sqrt(beta))^2)`,
@@ -201,10 +224,13 @@ pub fn fixed_gain_covariance(alpha: f64, beta: f64, one_minus_alpha: f64, r: f64
             predicted: [f64::INFINITY; 3],
         };
     }
-    let d = a * ((4.0 - 2.0 * a) - b);
+    // 4 - 2a - b and 2a^2 - 3ab + 2b cancel near (alpha, beta) = (1, 2), the
+    // high-SNR end of the Kalman curve: evaluate them as if in twice the
+    // working precision (exact products and compensated sums).
+    let d = a * dot2(&[(4.0, 1.0), (-2.0, a), (-1.0, b)]);
     let ab = a * b;
     let s_pred = 2.0 * a * a + ab + 2.0 * b;
-    let s_filt = 2.0 * a * a + b * (2.0 - 3.0 * a);
+    let s_filt = dot2(&[(2.0 * a, a), (2.0, b), (-2.0 * a, b), (-a, b)]);
     let (mv, pv) = (
         [s_pred / d, b * (2.0 * a + b) / d, 2.0 * b * b / d],
         [s_filt / d, b * (2.0 * a - b) / d, 2.0 * b * b / d],
@@ -248,6 +274,28 @@ pub fn error_covariance(alpha: f64, beta: f64, r_true: f64) -> Result<Covariance
     Ok(fixed_gain_covariance(alpha, beta, 1.0 - alpha, r_true))
 }
 
+/// Error-free transformation `a + b = s + e`.
+#[inline]
+fn two_sum(a: f64, b: f64) -> (f64, f64) {
+    let s = a + b;
+    let bb = s - a;
+    (s, (a - (s - bb)) + (b - bb))
+}
+
+/// `sum(x * y)` computed as if in twice the working precision (Ogita, Rump &
+/// Oishi's Dot2): exact products by FMA, compensated summation.
+fn dot2(terms: &[(f64, f64)]) -> f64 {
+    let (mut s, mut c) = (0.0_f64, 0.0_f64);
+    for &(x, y) in terms {
+        let p = x * y;
+        let ep = x.mul_add(y, -p);
+        let (t, es) = two_sum(s, p);
+        s = t;
+        c += ep + es;
+    }
+    s + c
+}
+
 /// Jury stability of the alpha-beta closed loop `z^2 - (2 - a - b) z + (1 - a)`.
 pub fn jury_stable(alpha: f64, beta: f64) -> bool {
     alpha > 0.0 && beta > 0.0 && 2.0 * alpha + beta < 4.0
@@ -285,7 +333,7 @@ impl AlphaBeta {
     /// Kalman design from the SNR `r = ((sigma_w T^2/2)/sigma_v)^2`, eqs (9)-(14).
     pub fn from_snr(r: f64) -> Result<Self> {
         check_pos("r", r)?;
-        Ok(Self::kalman_from_lambda(2.0 * r.sqrt(), Some(r)))
+        Self::kalman_from_lambda(2.0 * r.sqrt(), Some(r)).representable("r", r)
     }
 
     /// Kalman design from the physical noise: white acceleration `sigma_w`,
@@ -302,13 +350,13 @@ impl AlphaBeta {
                 lambda,
             ));
         }
-        Ok(Self::kalman_from_lambda(lambda, None))
+        Self::kalman_from_lambda(lambda, None).representable("sigma_w*T**2/sigma_v", lambda)
     }
 
     /// Kalman design from Kalata's tracking index `lambda = sigma_w T^2 / sigma_v`.
     pub fn from_tracking_index(lambda: f64) -> Result<Self> {
         check_pos("lam", lambda)?;
-        Ok(Self::kalman_from_lambda(lambda, None))
+        Self::kalman_from_lambda(lambda, None).representable("lam", lambda)
     }
 
     /// Kalman design from the normalised tracking error variance
@@ -320,7 +368,11 @@ impl AlphaBeta {
         let u = (1.0 - ratio).sqrt();
         let v = ratio / (1.0 + u);
         let lambda = 2.0 * v * v / u;
-        Ok(Self::kalman_from_uv(u, v, lambda, None))
+        let mut ab = Self::kalman_from_uv(u, v, lambda, None);
+        // The user's ratio is alpha exactly (eq (14)); keep it bit for bit.
+        ab.alpha = ratio;
+        ab.covariance.filtered[0] = ratio;
+        ab.representable("ratio", ratio)
     }
 
     /// Deterministic design from damping and natural frequency, eqs (6)-(7), (15):
@@ -340,7 +392,17 @@ impl AlphaBeta {
                 x,
             ));
         }
-        Ok(Self::from_x_damping(x, damping))
+        let ab = Self::from_x_damping(x, damping);
+        if !(ab.stable && ab.alpha > 0.0) {
+            return Err(Error::domain(
+                "omega_n*T",
+                format!(
+                    "inside the stable region at damping={damping} (it rounds onto its boundary)"
+                ),
+                x,
+            ));
+        }
+        Ok(ab)
     }
 
     /// Deterministic design from the noise-bandwidth x period product `B_N T`
@@ -354,7 +416,18 @@ impl AlphaBeta {
         check_pos("bn_t", bn_t)?;
         check_pos("damping", damping)?;
         let x = invert_bandwidth(bn_t, damping)?;
-        Ok(Self::from_x_damping(x, damping))
+        let ab = Self::from_x_damping(x, damping);
+        if ab.stable && ab.alpha > 0.0 {
+            Ok(ab)
+        } else {
+            Err(Error::domain(
+                "bn_t",
+                format!(
+                    "inside the stable region at damping={damping} (it rounds onto its boundary)"
+                ),
+                bn_t,
+            ))
+        }
     }
 
     fn from_x_damping(x: f64, damping: f64) -> Self {
@@ -368,8 +441,26 @@ impl AlphaBeta {
         Self::kalman_from_uv(u, v, lambda, r)
     }
 
+    /// Kalman designs are stable in exact arithmetic; reject inputs so extreme
+    /// that the float64 gains round onto or past the stability boundary.
+    fn representable(self, name: &'static str, value: f64) -> Result<Self> {
+        if self.stable {
+            Ok(self)
+        } else {
+            Err(Error::domain(
+                name,
+                format!(
+                    "moderate enough that the Kalman gains are representable in float64 \
+                     inside the stable region (they round to alpha={}, beta={})",
+                    self.alpha, self.beta
+                ),
+                value,
+            ))
+        }
+    }
+
     fn kalman_from_uv(u: f64, v: f64, lambda: f64, r: Option<f64>) -> Self {
-        let alpha = v * (1.0 + u);
+        let alpha = kalman_alpha(u, v);
         let beta = 2.0 * v * v;
         let u2 = u * u;
         let p22 = 4.0 * v * v * v / u;
@@ -515,12 +606,18 @@ pub fn invert_bandwidth(bn_t: f64, damping: f64) -> Result<f64> {
         }
     }
     let fhi = bandwidth_t_from_x(hi, d);
-    let too_big = if hi_is_open { bn_t >= fhi } else { bn_t > fhi };
+    // At an open bound (the stability limit) stay a few ulps inside: the bound
+    // itself is a marginally stable filter.
+    let too_big = if hi_is_open {
+        bn_t >= fhi * (1.0 - 8.0 * f64::EPSILON)
+    } else {
+        bn_t > fhi
+    };
     if too_big {
         return Err(Error::domain(
             "bn_t",
             format!(
-                "below {fhi:.17} (the largest noise bandwidth of a stable alpha-beta filter with positive alpha at damping={d})"
+                "below {fhi:.12} (the largest noise bandwidth of a stable alpha-beta filter with positive alpha at damping={d})"
             ),
             bn_t,
         ));
