@@ -71,3 +71,14 @@ def test_package_type_checks() -> None:
         cwd=str(ROOT),
     )
     assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_readme_quick_start_runs() -> None:
+    """The README's Python quick start executes as written."""
+    text = (ROOT / "README.md").read_text()
+    code = re.findall(r"```python\n(.*?)\n```", text, flags=re.S)
+    assert code, "README has no python quick start"
+    lines = code[0].splitlines()
+    assert len(lines) <= 12
+    out = subprocess.run([sys.executable, "-c", code[0]], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr

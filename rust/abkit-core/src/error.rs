@@ -7,7 +7,7 @@ use thiserror::Error as ThisError;
 #[derive(Debug, Clone, PartialEq, ThisError)]
 pub enum Error {
     /// A parameter is outside its allowed domain (NaN, infinite, negative, ...).
-    #[error("{name} must be {expected}, got {value}")]
+    #[error("{name} must be {expected}, got {value:?}")]
     Domain {
         /// Parameter name as the user spells it.
         name: &'static str,
