@@ -4,7 +4,7 @@
 use abkit_core::batch::map_rows;
 use abkit_core::Error;
 use numpy::{PyArray2, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
 /// The one conversion of core errors into Python exceptions.
@@ -13,6 +13,19 @@ pub(crate) fn to_pyerr((index, err): (usize, Error)) -> PyErr {
         Error::Domain { .. } => PyValueError::new_err(format!("{err} (at flat index {index})")),
         Error::Shape(_) => PyValueError::new_err(err.to_string()),
     }
+}
+
+/// Run `f`, turning a Rust panic (a bug in abkit, never expected) into a
+/// Python `RuntimeError` instead of letting it cross into Python.
+pub(crate) fn guard<T>(f: impl FnOnce() -> T) -> PyResult<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|payload| {
+        let msg = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown panic".to_string());
+        PyRuntimeError::new_err(format!("internal error in abkit (please report it): {msg}"))
+    })
 }
 
 /// Release the GIL and evaluate `f` element-wise over equal-length 1-D
@@ -31,7 +44,7 @@ pub(crate) fn rows<'py, const N: usize>(
     for (s, a) in slices.iter_mut().zip(inputs.iter()) {
         *s = a.as_slice()?;
     }
-    py.detach(|| map_rows(slices, width, out_slice, f))
+    py.detach(|| guard(|| map_rows(slices, width, out_slice, f)))?
         .map_err(to_pyerr)?;
     drop(out_rw);
     Ok(out)
