@@ -15,6 +15,7 @@
 pub mod alphabeta;
 pub mod batch;
 mod error;
+pub mod filter;
 
 pub use error::Error;
 

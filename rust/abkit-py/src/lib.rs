@@ -9,6 +9,7 @@
 
 mod alphabeta;
 mod convert;
+mod filter;
 
 use pyo3::prelude::*;
 
@@ -20,11 +21,14 @@ mod _abkit {
         alphabeta_from_natural_frequency, alphabeta_from_noise, alphabeta_from_snr,
         alphabeta_from_tracking_error, alphabeta_from_tracking_index,
     };
+    #[pymodule_export]
+    use super::filter::{filter_alphabeta, filter_fixed_gain};
     use pyo3::prelude::*;
 
     #[pymodule_init]
     fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.add("ALPHABETA_FIELDS", abkit_core::alphabeta::FIELDS.to_vec())?;
+        m.add("STATE_WIDTH", super::filter::STATE_WIDTH)?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))?;
         Ok(())
     }

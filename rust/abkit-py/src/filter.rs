@@ -1,0 +1,359 @@
+//! Bindings of `abkit_core::filter` (see `python/abkit/filters.py`).
+//!
+//! The Python layer validates shapes and dtypes, reshapes measurements to a
+//! 3-D view `(n_tracks, n_samples, m)` without copying, and allocates (or
+//! checks) the output buffers; these functions only borrow, release the GIL
+//! and run the kernels.
+
+use crate::convert::{guard, to_pyerr};
+use abkit_core::filter::{
+    filter_ab, filter_general, Gains, Init, IoFloat, Measurements, TrackState, MAX_STATES,
+};
+use numpy::ndarray::ArrayView3;
+use numpy::{
+    Element, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
+    PyReadonlyArray3,
+};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
+
+/// Width of a packed state row: `MAX_STATES` state entries, phase, since.
+pub(crate) const STATE_WIDTH: usize = MAX_STATES + 2;
+
+fn parse_init(init: &str) -> PyResult<Init> {
+    match init {
+        "first" => Ok(Init::First),
+        "two-point" => Ok(Init::TwoPoint),
+        _ => Err(PyValueError::new_err(format!(
+            "init must be 'two-point' or 'first', got {init:?}"
+        ))),
+    }
+}
+
+/// A view of any strides as core `Measurements`.
+fn measurements<'a, T: IoFloat>(v: &ArrayView3<'a, T>) -> Measurements<'a, T> {
+    let (nt, ns, m) = v.dim();
+    let s = v.strides();
+    if nt == 0 || ns == 0 || m == 0 {
+        return Measurements {
+            data: &[],
+            base: 0,
+            s_track: 0,
+            s_sample: 0,
+            s_comp: 0,
+            n_tracks: nt,
+            n_samples: ns,
+            m,
+        };
+    }
+    let dims = [nt, ns, m];
+    let (mut lo, mut hi) = (0isize, 0isize);
+    for (d, st) in dims.iter().zip(s) {
+        let span = (*d as isize - 1) * st;
+        lo += span.min(0);
+        hi += span.max(0);
+    }
+    // SAFETY: every element of the view lies in [ptr + lo, ptr + hi]
+    // (elements, same allocation, owned by the numpy array that the caller's
+    // readonly borrow keeps alive and unmodified for 'a).
+    let data = unsafe { std::slice::from_raw_parts(v.as_ptr().offset(lo), (hi - lo + 1) as usize) };
+    Measurements {
+        data,
+        base: (-lo) as usize,
+        s_track: s[0],
+        s_sample: s[1],
+        s_comp: s[2],
+        n_tracks: nt,
+        n_samples: ns,
+        m,
+    }
+}
+
+fn unpack_states(packed: &[f64]) -> Vec<TrackState> {
+    packed
+        .chunks_exact(STATE_WIDTH)
+        .map(|r| {
+            let mut x = [0.0; MAX_STATES];
+            x.copy_from_slice(&r[..MAX_STATES]);
+            TrackState {
+                x,
+                phase: r[MAX_STATES] as u8,
+                since: r[MAX_STATES + 1] as u64,
+            }
+        })
+        .collect()
+}
+
+fn pack_states(states: &[TrackState], packed: &mut [f64]) {
+    for (st, r) in states.iter().zip(packed.chunks_exact_mut(STATE_WIDTH)) {
+        r[..MAX_STATES].copy_from_slice(&st.x);
+        r[MAX_STATES] = st.phase as f64;
+        r[MAX_STATES + 1] = st.since as f64;
+    }
+}
+
+/// rayon pools for an explicit `threads=k`, built once per `k` and reused.
+fn pool(k: usize) -> PyResult<Arc<rayon::ThreadPool>> {
+    static POOLS: OnceLock<Mutex<HashMap<usize, Arc<rayon::ThreadPool>>>> = OnceLock::new();
+    let mut map = POOLS
+        .get_or_init(|| Mutex::new(HashMap::new()))
+        .lock()
+        .map_err(|_| PyValueError::new_err("thread pool registry poisoned"))?;
+    if let Some(p) = map.get(&k) {
+        return Ok(p.clone());
+    }
+    let p = Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(k)
+            .build()
+            .map_err(|e| PyValueError::new_err(format!("threads={k}: {e}")))?,
+    );
+    map.insert(k, p.clone());
+    Ok(p)
+}
+
+/// Run `f(parallel)` per the `threads` argument: None = rayon's global pool,
+/// 1 = this thread, k = a cached pool of k threads.
+fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce(bool) -> R + Send) -> PyResult<R> {
+    match threads {
+        None => Ok(f(true)),
+        Some(0) => Err(PyValueError::new_err("threads must be >= 1 or None")),
+        Some(1) => Ok(f(false)),
+        Some(k) => Ok(pool(k)?.install(|| f(true))),
+    }
+}
+
+struct Buffers<'py, T: Element> {
+    out: Bound<'py, PyArray3<T>>,
+    resid: Option<Bound<'py, PyArray3<T>>>,
+    state: Bound<'py, PyArray2<f64>>,
+}
+
+fn run_typed<'py, T: IoFloat + Element>(
+    py: Python<'py>,
+    z: PyReadonlyArray3<'py, T>,
+    bufs: Buffers<'py, T>,
+    threads: Option<usize>,
+    run: impl FnOnce(
+            &Measurements<'_, T>,
+            &mut [TrackState],
+            &mut [T],
+            Option<&mut [T]>,
+            bool,
+        ) -> abkit_core::Result<()>
+        + Send,
+) -> PyResult<()> {
+    let view = z.as_array();
+    let meas = measurements(&view);
+    let mut out_rw = bufs.out.readwrite();
+    let out = out_rw.as_slice_mut()?;
+    let mut resid_rw = bufs.resid.as_ref().map(|r| r.readwrite());
+    let resid = match resid_rw.as_mut() {
+        Some(r) => Some(r.as_slice_mut()?),
+        None => None,
+    };
+    let mut st_rw = bufs.state.readwrite();
+    let packed = st_rw.as_slice_mut()?;
+    if packed.len() != meas.n_tracks * STATE_WIDTH {
+        return Err(PyValueError::new_err(
+            "state has the wrong number of tracks",
+        ));
+    }
+    let mut states = unpack_states(packed);
+    let res = py.detach(|| {
+        guard(|| with_threads(threads, |par| run(&meas, &mut states, out, resid, par)))
+    })??;
+    res.map_err(|e| to_pyerr((0, e)))?;
+    pack_states(&states, packed);
+    Ok(())
+}
+
+fn dispatch_dtype<'py>(
+    z: &Bound<'py, PyAny>,
+    out: &Bound<'py, PyAny>,
+    resid: Option<&Bound<'py, PyAny>>,
+) -> PyResult<bool> {
+    // true = float64, false = float32
+    let is64 = if z.cast::<PyArray3<f64>>().is_ok() {
+        true
+    } else if z.cast::<PyArray3<f32>>().is_ok() {
+        false
+    } else {
+        return Err(PyTypeError::new_err(
+            "z must be a 3-D float32 or float64 array",
+        ));
+    };
+    let ok = |a: &Bound<'py, PyAny>| {
+        if is64 {
+            a.cast::<PyArray3<f64>>().is_ok()
+        } else {
+            a.cast::<PyArray3<f32>>().is_ok()
+        }
+    };
+    if !ok(out) || resid.is_some_and(|r| !ok(r)) {
+        return Err(PyTypeError::new_err(
+            "out and residuals must have the dtype of z",
+        ));
+    }
+    Ok(is64)
+}
+
+macro_rules! typed {
+    ($py:expr, $is64:expr, $z:expr, $out:expr, $resid:expr, $state:expr, $threads:expr, $run:expr) => {
+        if $is64 {
+            run_typed::<f64>(
+                $py,
+                $z.cast::<PyArray3<f64>>()?.readonly(),
+                Buffers {
+                    out: $out.cast::<PyArray3<f64>>()?.clone(),
+                    resid: $resid
+                        .map(|r| r.cast::<PyArray3<f64>>().cloned())
+                        .transpose()?,
+                    state: $state,
+                },
+                $threads,
+                $run,
+            )
+        } else {
+            run_typed::<f32>(
+                $py,
+                $z.cast::<PyArray3<f32>>()?.readonly(),
+                Buffers {
+                    out: $out.cast::<PyArray3<f32>>()?.clone(),
+                    resid: $resid
+                        .map(|r| r.cast::<PyArray3<f32>>().cloned())
+                        .transpose()?,
+                    state: $state,
+                },
+                $threads,
+                $run,
+            )
+        }
+    };
+}
+
+/// Alpha-beta filtering of `z` (n_tracks, n_samples, 1) into `out`
+/// (2, n_tracks, n_samples); `params` rows are (alpha, beta, T).
+#[pyfunction]
+#[pyo3(signature = (z, params, init, state, out, resid=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn filter_alphabeta<'py>(
+    py: Python<'py>,
+    z: &Bound<'py, PyAny>,
+    params: PyReadonlyArray2<'py, f64>,
+    init: &str,
+    state: Bound<'py, PyArray2<f64>>,
+    out: &Bound<'py, PyAny>,
+    resid: Option<&Bound<'py, PyAny>>,
+    threads: Option<usize>,
+) -> PyResult<()> {
+    let init = parse_init(init)?;
+    let p: Vec<(f64, f64, f64)> = params
+        .as_slice()?
+        .chunks_exact(3)
+        .map(|r| (r[0], r[1], r[2]))
+        .collect();
+    let is64 = dispatch_dtype(z, out, resid)?;
+    typed!(
+        py,
+        is64,
+        z,
+        out,
+        resid,
+        state,
+        threads,
+        |m, s, o, r, par| { filter_ab(&p, init, m, s, o, r, par) }
+    )
+}
+
+fn gains<const N: usize, const M: usize>(
+    phi: &[f64],
+    h: &[f64],
+    k: &[f64],
+    h_pinv: &[f64],
+    t: &[f64],
+) -> Vec<Gains<N, M>> {
+    (0..t.len())
+        .map(|p| Gains {
+            phi: std::array::from_fn(|i| std::array::from_fn(|j| phi[p * N * N + i * N + j])),
+            h: std::array::from_fn(|i| std::array::from_fn(|j| h[p * M * N + i * N + j])),
+            k: std::array::from_fn(|i| std::array::from_fn(|j| k[p * N * M + i * M + j])),
+            h_pinv: std::array::from_fn(|i| std::array::from_fn(|j| h_pinv[p * N * M + i * M + j])),
+            t: t[p],
+        })
+        .collect()
+}
+
+/// General fixed-gain filtering: `phi` (P, n, n), `h` (P, m, n), `k` and
+/// `h_pinv` (P, n, m), `t` (P,) with P = 1 or n_tracks, flattened.
+#[pyfunction]
+#[pyo3(signature = (z, n, m, phi, h, k, h_pinv, t, init, state, out, resid=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn filter_fixed_gain<'py>(
+    py: Python<'py>,
+    z: &Bound<'py, PyAny>,
+    n: usize,
+    m: usize,
+    phi: PyReadonlyArray1<'py, f64>,
+    h: PyReadonlyArray1<'py, f64>,
+    k: PyReadonlyArray1<'py, f64>,
+    h_pinv: PyReadonlyArray1<'py, f64>,
+    t: PyReadonlyArray1<'py, f64>,
+    init: &str,
+    state: Bound<'py, PyArray2<f64>>,
+    out: &Bound<'py, PyAny>,
+    resid: Option<&Bound<'py, PyAny>>,
+    threads: Option<usize>,
+) -> PyResult<()> {
+    let init = parse_init(init)?;
+    let (phi, h, k, hp, t) = (
+        phi.as_slice()?,
+        h.as_slice()?,
+        k.as_slice()?,
+        h_pinv.as_slice()?,
+        t.as_slice()?,
+    );
+    let np = t.len();
+    if phi.len() != np * n * n
+        || h.len() != np * m * n
+        || k.len() != np * n * m
+        || hp.len() != np * n * m
+    {
+        return Err(PyValueError::new_err("Phi, H, K sizes do not match n, m"));
+    }
+    let is64 = dispatch_dtype(z, out, resid)?;
+    macro_rules! go {
+        ($n:literal, $m:literal) => {{
+            let g = gains::<$n, $m>(phi, h, k, hp, t);
+            typed!(
+                py,
+                is64,
+                z,
+                out,
+                resid,
+                state,
+                threads,
+                |mm, s, o, r, par| { filter_general(&g, init, mm, s, o, r, par) }
+            )
+        }};
+    }
+    match (n, m) {
+        (1, 1) => go!(1, 1),
+        (2, 1) => go!(2, 1),
+        (3, 1) => go!(3, 1),
+        (4, 1) => go!(4, 1),
+        (5, 1) => go!(5, 1),
+        (6, 1) => go!(6, 1),
+        (1, 2) => go!(1, 2),
+        (2, 2) => go!(2, 2),
+        (3, 2) => go!(3, 2),
+        (4, 2) => go!(4, 2),
+        (5, 2) => go!(5, 2),
+        (6, 2) => go!(6, 2),
+        _ => Err(PyValueError::new_err(format!(
+            "state dimension must be 1..=6 and measurement dimension 1..=2, got n={n}, m={m}"
+        ))),
+    }
+}
