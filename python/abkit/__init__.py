@@ -7,12 +7,33 @@ Modules
 -------
 alphabeta
     Alpha-beta design (Kalman and deterministic) and analysis.
+filters
+    Batched filtering: AlphaBetaFilter, AlphaBetaGammaFilter, FixedGainFilter, Tracker.
 plot
     Figures (the design nomograph); needs ``abkit[plot]``.
 """
 
-from . import alphabeta
+from . import alphabeta, filters
 from ._abkit import __version__
 from .alphabeta import AlphaBeta
+from .filters import (
+    AlphaBetaFilter,
+    AlphaBetaGammaFilter,
+    FilterResult,
+    FilterState,
+    FixedGainFilter,
+    Tracker,
+)
 
-__all__ = ["alphabeta", "AlphaBeta", "__version__"]
+__all__ = [
+    "alphabeta",
+    "filters",
+    "AlphaBeta",
+    "AlphaBetaFilter",
+    "AlphaBetaGammaFilter",
+    "FilterResult",
+    "FilterState",
+    "FixedGainFilter",
+    "Tracker",
+    "__version__",
+]

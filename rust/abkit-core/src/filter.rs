@@ -504,8 +504,19 @@ pub fn run_batch<T: IoFloat, const N: usize>(
     Ok(())
 }
 
+/// Optional smoothing after filtering: backward gains `A` (one per parameter
+/// set) and the lag (`None`: fixed interval). See [`crate::smooth`].
+#[derive(Debug, Clone, Copy)]
+pub struct Smoother<'a, const N: usize> {
+    /// Backward gains `A = P_filt Phi^T P_pred^-1`.
+    pub a: &'a [[[f64; N]; N]],
+    /// Fixed lag, or `None` for the fixed-interval smoother.
+    pub lag: Option<usize>,
+}
+
 /// Filter a batch with a general fixed-gain filter: one `Gains` for all
-/// tracks (`gains.len() == 1`) or one per track.
+/// tracks (`gains.len() == 1`) or one per track; optionally smooth each track
+/// right after filtering it (while it is in cache).
 pub fn filter_general<T: IoFloat, const N: usize, const M: usize>(
     gains: &[Gains<N, M>],
     init: Init,
@@ -514,8 +525,12 @@ pub fn filter_general<T: IoFloat, const N: usize, const M: usize>(
     out: &mut [T],
     resid: Option<&mut [T]>,
     parallel: bool,
+    smoother: Option<Smoother<'_, N>>,
 ) -> Result<()> {
     check_params(gains.len(), z)?;
+    if let Some(sm) = &smoother {
+        check_params(sm.a.len(), z)?;
+    }
     if z.m != M {
         return Err(Error::Shape(format!(
             "measurement dimension {} != {M}",
@@ -555,6 +570,10 @@ pub fn filter_general<T: IoFloat, const N: usize, const M: usize>(
                     o,
                 ),
             }
+            if let Some(sm) = &smoother {
+                let a = &sm.a[if sm.a.len() == 1 { 0 } else { i }];
+                crate::smooth::smooth_track(&g.phi, a, sm.lag, &mut o.states);
+            }
         },
     )
 }
@@ -569,8 +588,12 @@ pub fn filter_ab<T: IoFloat>(
     out: &mut [T],
     resid: Option<&mut [T]>,
     parallel: bool,
+    smoother: Option<Smoother<'_, 2>>,
 ) -> Result<()> {
     check_params(params.len(), z)?;
+    if let Some(sm) = &smoother {
+        check_params(sm.a.len(), z)?;
+    }
     if z.m != 1 {
         return Err(Error::Shape(format!(
             "alpha-beta needs scalar measurements, got {}",
@@ -600,6 +623,10 @@ pub fn filter_ab<T: IoFloat>(
                     };
                     run_track(&g, init, st, z.n_samples, |k| [z.at(i, k, 0)], o)
                 }
+            }
+            if let Some(sm) = &smoother {
+                let a = &sm.a[if sm.a.len() == 1 { 0 } else { i }];
+                crate::smooth::smooth_track(&[[1.0, t], [0.0, 1.0]], a, sm.lag, &mut o.states);
             }
         },
     )
@@ -684,6 +711,7 @@ mod tests {
                     &mut buf,
                     None,
                     false,
+                    None,
                 )
                 .unwrap();
                 o1[..split].copy_from_slice(&buf[..split]);
@@ -700,6 +728,7 @@ mod tests {
                         &mut buf,
                         None,
                         false,
+                        None,
                     )
                     .unwrap();
                     o1[split..].copy_from_slice(&buf[..rest]);
@@ -748,9 +777,20 @@ mod tests {
             &mut o1,
             None,
             false,
+            None,
         )
         .unwrap();
-        filter_general(&[g], Init::First, &meas, &mut s2, &mut o2, None, false).unwrap();
+        filter_general(
+            &[g],
+            Init::First,
+            &meas,
+            &mut s2,
+            &mut o2,
+            None,
+            false,
+            None,
+        )
+        .unwrap();
         for k in 0..2 * n {
             assert!(close(o1[k], o2[k]), "{k}: {} {}", o1[k], o2[k]);
         }
@@ -780,7 +820,8 @@ mod tests {
             &mut st,
             &mut out,
             None,
-            false
+            false,
+            None
         )
         .is_err());
     }

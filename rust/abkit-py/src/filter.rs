@@ -7,7 +7,7 @@
 
 use crate::convert::{guard, to_pyerr};
 use abkit_core::filter::{
-    filter_ab, filter_general, Gains, Init, IoFloat, Measurements, TrackState, MAX_STATES,
+    filter_ab, filter_general, Gains, Init, IoFloat, Measurements, Smoother, TrackState, MAX_STATES,
 };
 use numpy::ndarray::ArrayView3;
 use numpy::{
@@ -237,7 +237,7 @@ macro_rules! typed {
 /// Alpha-beta filtering of `z` (n_tracks, n_samples, 1) into `out`
 /// (2, n_tracks, n_samples); `params` rows are (alpha, beta, T).
 #[pyfunction]
-#[pyo3(signature = (z, params, init, state, out, resid=None, threads=None))]
+#[pyo3(signature = (z, params, init, state, out, resid=None, threads=None, smoother_gain=None, lag=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter_alphabeta<'py>(
     py: Python<'py>,
@@ -248,7 +248,10 @@ pub(crate) fn filter_alphabeta<'py>(
     out: &Bound<'py, PyAny>,
     resid: Option<&Bound<'py, PyAny>>,
     threads: Option<usize>,
+    smoother_gain: Option<PyReadonlyArray1<'py, f64>>,
+    lag: Option<usize>,
 ) -> PyResult<()> {
+    let a = smoother_gains::<2>(smoother_gain.as_ref())?;
     let init = parse_init(init)?;
     let p: Vec<(f64, f64, f64)> = params
         .as_slice()?
@@ -256,6 +259,7 @@ pub(crate) fn filter_alphabeta<'py>(
         .map(|r| (r[0], r[1], r[2]))
         .collect();
     let is64 = dispatch_dtype(z, out, resid)?;
+    let sm = a.as_deref().map(|a| Smoother { a, lag });
     typed!(
         py,
         is64,
@@ -264,8 +268,23 @@ pub(crate) fn filter_alphabeta<'py>(
         resid,
         state,
         threads,
-        |m, s, o, r, par| { filter_ab(&p, init, m, s, o, r, par) }
+        |m, s, o, r, par| { filter_ab(&p, init, m, s, o, r, par, sm) }
     )
+}
+
+fn smoother_gains<const N: usize>(
+    a: Option<&PyReadonlyArray1<'_, f64>>,
+) -> PyResult<Option<Vec<[[f64; N]; N]>>> {
+    let Some(a) = a else { return Ok(None) };
+    let s = a.as_slice()?;
+    if s.is_empty() || s.len() % (N * N) != 0 {
+        return Err(PyValueError::new_err("smoother gain has the wrong size"));
+    }
+    Ok(Some(
+        s.chunks_exact(N * N)
+            .map(|c| std::array::from_fn(|i| std::array::from_fn(|j| c[i * N + j])))
+            .collect(),
+    ))
 }
 
 fn gains<const N: usize, const M: usize>(
@@ -289,7 +308,7 @@ fn gains<const N: usize, const M: usize>(
 /// General fixed-gain filtering: `phi` (P, n, n), `h` (P, m, n), `k` and
 /// `h_pinv` (P, n, m), `t` (P,) with P = 1 or n_tracks, flattened.
 #[pyfunction]
-#[pyo3(signature = (z, n, m, phi, h, k, h_pinv, t, init, state, out, resid=None, threads=None))]
+#[pyo3(signature = (z, n, m, phi, h, k, h_pinv, t, init, state, out, resid=None, threads=None, smoother_gain=None, lag=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter_fixed_gain<'py>(
     py: Python<'py>,
@@ -306,6 +325,8 @@ pub(crate) fn filter_fixed_gain<'py>(
     out: &Bound<'py, PyAny>,
     resid: Option<&Bound<'py, PyAny>>,
     threads: Option<usize>,
+    smoother_gain: Option<PyReadonlyArray1<'py, f64>>,
+    lag: Option<usize>,
 ) -> PyResult<()> {
     let init = parse_init(init)?;
     let (phi, h, k, hp, t) = (
@@ -327,6 +348,8 @@ pub(crate) fn filter_fixed_gain<'py>(
     macro_rules! go {
         ($n:literal, $m:literal) => {{
             let g = gains::<$n, $m>(phi, h, k, hp, t);
+            let a = smoother_gains::<$n>(smoother_gain.as_ref())?;
+            let sm = a.as_deref().map(|a| Smoother { a, lag });
             typed!(
                 py,
                 is64,
@@ -335,7 +358,7 @@ pub(crate) fn filter_fixed_gain<'py>(
                 resid,
                 state,
                 threads,
-                |mm, s, o, r, par| { filter_general(&g, init, mm, s, o, r, par) }
+                |mm, s, o, r, par| { filter_general(&g, init, mm, s, o, r, par, sm) }
             )
         }};
     }

@@ -1,0 +1,761 @@
+r"""Batched fixed-gain filtering: alpha-beta, alpha-beta-gamma and general filters.
+
+A fixed-gain filter with transition ``Phi`` (n x n), measurement matrix ``H``
+(m x n) and filter-form gain ``K`` (n x m) runs, for every track and sample,
+
+.. code-block:: text
+
+    x_p = Phi x          predict
+    e   = z - H x_p      residual
+    x   = x_p + K e      update (skipped for a missed sample)
+
+over arrays of shape ``(n_samples,)`` or ``(n_tracks, n_samples)`` (scalar
+measurements) or ``(..., m)`` (vector measurements), in float32 or float64,
+in Rust with the GIL released, on rayon's thread pool.
+
+Missed detections
+-----------------
+A NaN measurement (any NaN component) is a missed detection: the filter
+coasts (prediction only) and the residual is NaN. NaN never propagates into
+later valid samples. Before a track's first valid sample its estimates are
+NaN; a track that is all NaN stays NaN.
+
+Start-up (``init``)
+-------------------
+``"two-point"`` (kinematic filters; the standard tracker start): position
+from the first valid sample (velocity NaN until the second), then position
+and velocity from the first two valid samples, ``(z2 - z1) / (gap T)``;
+filtering starts at the next sample. ``"first"``: the state from the first
+valid measurement (``pinv(H) z``), rates zero, filtering from the next
+sample. An array: explicit states just before the first sample, shape
+``(n,)`` or ``(n_tracks, n)``.
+
+Streaming
+---------
+``result.state`` is the final per-track state; ``f.run(z2, state=r1.state)``
+continues exactly where ``r1`` stopped (bit-identical to one call over the
+concatenated samples). :class:`Tracker` holds the state for real-time use.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _abkit
+from ._validate import as_float_array, check_positive
+
+__all__ = [
+    "FixedGainFilter",
+    "AlphaBetaFilter",
+    "AlphaBetaGammaFilter",
+    "FilterResult",
+    "FilterState",
+    "Tracker",
+    "ABG_CONVENTIONS",
+]
+
+_W = int(_abkit.STATE_WIDTH)
+_NMAX = _W - 2
+_ACCEPTED = (np.dtype(np.float32), np.dtype(np.float64))
+
+#: Alpha-beta-gamma gain conventions: the filter-form gain vector for
+#: ``(alpha, beta, gamma)`` and period ``T``.
+#:
+#: - ``"standard"`` (Bar-Shalom, Kalata, tracklib): ``[alpha, beta/T, gamma/(2 T^2)]``
+#: - ``"chen-chui"`` (paper 004): ``[alpha, beta/T, gamma/T^2]``
+#: - ``"ghk"`` (FilterPy's g-h-k filter, ``k`` passed as ``gamma``): ``[g, h/T, 2k/T^2]``
+ABG_CONVENTIONS = {
+    "standard": 0.5,
+    "chen-chui": 1.0,
+    "ghk": 2.0,
+}
+
+
+class FilterState:
+    """Per-track filter state for streaming (``result.state``).
+
+    Attributes
+    ----------
+    x : ndarray, shape (n_tracks, n)
+        The state estimate after the last sample.
+    phase : ndarray of int, shape (n_tracks,)
+        0: no valid sample yet; 1: one valid sample held (two-point start);
+        2: running.
+    """
+
+    __slots__ = ("_packed", "n", "single")
+
+    def __init__(self, packed: np.ndarray, n: int, single: bool):
+        self._packed = packed
+        self.n = n
+        self.single = single
+
+    @property
+    def n_tracks(self) -> int:
+        return int(self._packed.shape[0])
+
+    @property
+    def x(self) -> np.ndarray:
+        x = self._packed[:, : self.n].copy()
+        return x[0] if self.single else x
+
+    @property
+    def phase(self) -> np.ndarray:
+        p = self._packed[:, _NMAX].astype(np.int8)
+        return p[0] if self.single else p
+
+    def copy(self) -> "FilterState":
+        return FilterState(self._packed.copy(), self.n, self.single)
+
+    def __repr__(self) -> str:
+        return f"FilterState(n_tracks={self.n_tracks}, n={self.n})"
+
+
+class FilterResult:
+    """Output of :meth:`FixedGainFilter.run`.
+
+    Attributes
+    ----------
+    states : ndarray, shape (n, *sample_shape)
+        All estimates, component-major (each component contiguous);
+        ``sample_shape`` is ``(n_samples,)`` or ``(n_tracks, n_samples)``.
+    position, velocity, acceleration : ndarray, shape sample_shape
+        ``states[0]``, ``states[1]``, ``states[2]`` (where the state has them).
+    residuals : ndarray or None
+        ``z - H x_p``, shaped like ``z``; NaN at missed samples and during
+        start-up. Only with ``return_residuals=True``.
+    state : FilterState
+        Final per-track state, for ``run(..., state=...)``.
+    """
+
+    __slots__ = ("states", "residuals", "state")
+
+    def __init__(self, states: np.ndarray, residuals: Optional[np.ndarray], state: FilterState):
+        self.states = states
+        self.residuals = residuals
+        self.state = state
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.states[0]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        if self.states.shape[0] < 2:
+            raise AttributeError("this filter has no velocity state")
+        return self.states[1]
+
+    @property
+    def acceleration(self) -> np.ndarray:
+        if self.states.shape[0] < 3:
+            raise AttributeError("this filter has no acceleration state")
+        return self.states[2]
+
+    def __repr__(self) -> str:
+        return f"FilterResult(states={self.states.shape} {self.states.dtype}, residuals={'yes' if self.residuals is not None else 'no'})"
+
+
+def _as_matrix(name: str, value: Any, shape: Tuple[int, ...]) -> np.ndarray:
+    a = as_float_array(name, value)
+    if a.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite")
+    return a
+
+
+class FixedGainFilter:
+    r"""A general fixed-gain filter ``x = Phi x + K (z - H Phi x)``.
+
+    Parameters
+    ----------
+    Phi : array_like, shape (n, n) or (n_tracks, n, n)
+        State transition, ``1 <= n <= 6``.
+    H : array_like, shape (m, n) or (n_tracks, m, n)
+        Measurement matrix, ``m`` in {1, 2}.
+    K : array_like, shape (n, m) or (n_tracks, n, m)
+        Filter-form gain.
+    T : float, optional
+        Sampling period; used only by ``init="two-point"`` (velocity from two
+        samples) for kinematic states ``[position, velocity, ...]``.
+    allow_unstable : bool, optional
+        Accept gains whose closed loop ``(I - K H) Phi`` has a spectral radius
+        >= 1 (otherwise a ``ValueError``).
+
+    Notes
+    -----
+    Per-track parameters (a leading ``n_tracks`` axis) give one design per
+    track; ``run`` then needs exactly that many tracks.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from abkit import FixedGainFilter
+    >>> f = FixedGainFilter([[1.0, 1.0], [0.0, 1.0]], [[1.0, 0.0]], [[0.5], [0.2]])
+    >>> r = f.run(np.arange(6.0), init="first")
+    >>> r.position.shape, r.states.shape
+    ((6,), (2, 6))
+    """
+
+    _kinematic = False
+
+    def __init__(self, Phi: Any, H: Any, K: Any, T: float = 1.0, *, allow_unstable: bool = False):
+        phi = as_float_array("Phi", Phi)
+        if phi.ndim not in (2, 3) or phi.shape[-1] != phi.shape[-2]:
+            raise ValueError(f"Phi must have shape (n, n) or (n_tracks, n, n), got {phi.shape}")
+        n = phi.shape[-1]
+        if not 1 <= n <= _NMAX:
+            raise ValueError(f"Phi: state dimension must be 1..{_NMAX}, got {n}")
+        h = as_float_array("H", H)
+        if h.ndim == 1:
+            h = h[None, :]
+        if h.ndim not in (2, 3) or h.shape[-1] != n or h.shape[-2] not in (1, 2):
+            raise ValueError(f"H must have shape (m, {n}) with m in (1, 2), got {h.shape}")
+        m = h.shape[-2]
+        k = as_float_array("K", K)
+        if k.ndim == 1 and m == 1:
+            k = k[:, None]
+        if k.ndim not in (2, 3) or k.shape[-2:] != (n, m):
+            raise ValueError(f"K must have shape ({n}, {m}) or (n_tracks, {n}, {m}), got {k.shape}")
+        lead = {a.shape[0] for a in (phi, h, k) if a.ndim == 3}
+        if len(lead) > 1:
+            raise ValueError(f"Phi, H, K have different numbers of per-track parameter sets: {sorted(lead)}")
+        P = lead.pop() if lead else 1
+        for name, a in (("Phi", phi), ("H", h), ("K", k)):
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"{name} must be finite")
+        t = as_float_array("T", T)
+        check_positive("T", t)
+        self._phi = np.ascontiguousarray(np.broadcast_to(phi, (P, n, n)))
+        self._h = np.ascontiguousarray(np.broadcast_to(h, (P, m, n)))
+        self._k = np.ascontiguousarray(np.broadcast_to(k, (P, n, m)))
+        self._t = np.ascontiguousarray(np.broadcast_to(t, (P,)), dtype=np.float64)
+        self._hpinv = np.ascontiguousarray(np.linalg.pinv(self._h))
+        self.n, self.m, self.n_params = n, m, P
+        self.allow_unstable = allow_unstable
+        rho = np.atleast_1d(self.spectral_radius)
+        bad = ~(rho < 1.0)
+        if bad.any() and not allow_unstable:
+            i = int(np.argmax(bad))
+            where = "" if P == 1 else f" (parameter set {i})"
+            raise ValueError(
+                f"K gives an unstable filter{where}: spectral radius of (I - K H) Phi is "
+                f"{float(rho.reshape(-1)[i]):.6g} >= 1; pass allow_unstable=True to run it anyway"
+            )
+
+    # -- model ---------------------------------------------------------------
+    @property
+    def Phi(self) -> np.ndarray:
+        return self._phi[0] if self.n_params == 1 else self._phi.copy()
+
+    @property
+    def H(self) -> np.ndarray:
+        return self._h[0] if self.n_params == 1 else self._h.copy()
+
+    @property
+    def K(self) -> np.ndarray:
+        return self._k[0] if self.n_params == 1 else self._k.copy()
+
+    @property
+    def closed_loop(self) -> np.ndarray:
+        """``(I - K H) Phi``, the filtered-state error transition."""
+        eye = np.eye(self.n)
+        a = (eye - self._k @ self._h) @ self._phi
+        return a[0] if self.n_params == 1 else a
+
+    @property
+    def spectral_radius(self) -> Union[float, np.ndarray]:
+        """Largest pole magnitude of the closed loop (< 1: stable)."""
+        rho = np.max(np.abs(np.linalg.eigvals((np.eye(self.n) - self._k @ self._h) @ self._phi)), axis=-1)
+        return float(rho[0]) if self.n_params == 1 else rho
+
+    def covariances(self, Q: Any, R: Any) -> "SteadyStateCovariance":
+        """Theoretical steady-state error covariances of this filter under the
+        model ``x' = Phi x + w`` (``cov w = Q``), ``z = H x + v`` (``cov v = R``).
+
+        Returns predicted, filtered and (RTS) smoothed covariances; see
+        :class:`SteadyStateCovariance`.
+        """
+        q = _as_matrix("Q", Q, (self.n, self.n))
+        r = _as_matrix("R", R, (self.m, self.m))
+        if self.n_params != 1:
+            raise ValueError("covariances() needs a filter with one parameter set")
+        return _steady_covariance(self._phi[0], self._h[0], self._k[0], q, r)
+
+    # -- running ---------------------------------------------------------------
+    def _prepare_z(self, z: Any) -> Tuple[np.ndarray, Tuple[int, ...], bool]:
+        if not isinstance(z, np.ndarray):
+            z = np.asarray(z)
+            if z.dtype.kind in "iub":
+                raise TypeError(f"z must be a float32 or float64 array, got {z.dtype}; convert it with np.asarray(z, float)")
+        if z.dtype not in _ACCEPTED:
+            if z.dtype.kind == "f" and z.dtype.itemsize in (4, 8) and not z.dtype.isnative:
+                raise TypeError(f"z must be float32 or float64 in native byte order, got {z.dtype}; use z.astype(z.dtype.newbyteorder('='))")
+            raise TypeError(f"z must be a float32 or float64 array, got dtype {z.dtype}")
+        m = self.m
+        if m == 1:
+            if z.ndim == 1:
+                z3, single = z[None, :, None], True
+            elif z.ndim == 2:
+                z3, single = z[:, :, None], False
+            else:
+                raise ValueError(f"z must have shape (n_samples,) or (n_tracks, n_samples) for scalar measurements, got {z.shape}")
+        else:
+            if z.ndim not in (2, 3) or z.shape[-1] != m:
+                raise ValueError(f"z must have shape (n_samples, {m}) or (n_tracks, n_samples, {m}) for this filter (H has {m} rows), got {z.shape}")
+            z3, single = (z[None] if z.ndim == 2 else z), z.ndim == 2
+        if not z3.flags.aligned or any(s % z3.itemsize for s in z3.strides):
+            z3 = np.ascontiguousarray(z3)  # unaligned memory: the one case that copies
+        return z3, z3.shape[:2], single
+
+    def _initial_state(self, init: Any, state: Optional[FilterState], n_tracks: int) -> Tuple[np.ndarray, str]:
+        packed = np.zeros((n_tracks, _W))
+        if state is not None:
+            if not isinstance(state, FilterState):
+                raise TypeError(f"state must be a FilterState (result.state), got {type(state).__name__}")
+            if state.n != self.n or state.n_tracks != n_tracks:
+                raise ValueError(f"state is for {state.n_tracks} tracks of {state.n} states; z has {n_tracks} tracks and the filter {self.n} states")
+            packed[:] = state._packed
+        if isinstance(init, str):
+            if init not in ("two-point", "first"):
+                raise ValueError(f"init must be 'two-point', 'first' or an array of initial states, got {init!r}")
+            if init == "two-point" and not self._kinematic:
+                if not (self.m == 1 and self._kinematic_like()):
+                    raise ValueError("init='two-point' needs a kinematic state [position, velocity, ...] measured in position; use init='first' or explicit states")
+            return packed, init
+        x0 = as_float_array("init", init)
+        if x0.shape not in ((self.n,), (n_tracks, self.n)):
+            raise ValueError(f"init array must have shape ({self.n},) or ({n_tracks}, {self.n}), got {x0.shape}")
+        if not np.all(np.isfinite(x0)):
+            raise ValueError("init must be finite")
+        if state is None:
+            packed[:, : self.n] = x0
+            packed[:, _NMAX] = 2
+        return packed, "first"
+
+    def _kinematic_like(self) -> bool:
+        h = self._h
+        return bool(np.all(h[:, 0, 0] == 1) and np.all(h[:, 0, 1:] == 0) and self.n >= 2)
+
+    def _check_params(self, n_tracks: int) -> None:
+        if self.n_params not in (1, n_tracks):
+            raise ValueError(f"the filter has {self.n_params} per-track parameter sets but z has {n_tracks} tracks")
+
+    def _out(self, out: Any, z: np.ndarray, z3: np.ndarray, shape: Tuple[int, ...]) -> np.ndarray:
+        want = (self.n,) + shape
+        if out is None:
+            return np.empty(want, dtype=z.dtype)
+        if not isinstance(out, np.ndarray):
+            raise TypeError(f"out must be a numpy array, got {type(out).__name__}")
+        if out.shape != want or out.dtype != z.dtype:
+            raise ValueError(f"out must have shape {want} and dtype {z.dtype}, got {out.shape} {out.dtype}")
+        if not out.flags.c_contiguous or not out.flags.writeable:
+            raise ValueError("out must be C-contiguous and writeable")
+        if np.shares_memory(out, z):
+            raise ValueError("out overlaps z")
+        return out
+
+    def _kernel(self, z3: np.ndarray, packed: np.ndarray, init: str, out3: np.ndarray, res3: Optional[np.ndarray], threads: Optional[int], sgain: Optional[np.ndarray] = None, lag: Optional[int] = None) -> None:
+        _abkit.filter_fixed_gain(
+            z3, self.n, self.m, self._phi.reshape(-1), self._h.reshape(-1), self._k.reshape(-1),
+            self._hpinv.reshape(-1), self._t, init, packed, out3, res3, threads, sgain, lag,
+        )
+
+    def run(
+        self,
+        z: Any,
+        *,
+        init: Any = "two-point",
+        state: Optional[FilterState] = None,
+        out: Optional[np.ndarray] = None,
+        return_residuals: bool = False,
+        threads: Optional[int] = None,
+    ) -> FilterResult:
+        """Filter measurements.
+
+        Parameters
+        ----------
+        z : ndarray
+            ``(n_samples,)`` or ``(n_tracks, n_samples)`` (scalar measurements),
+            ``(n_samples, m)`` or ``(n_tracks, n_samples, m)`` (vector);
+            float32 or float64 (kept), any strides; NaN = missed detection.
+        init : {"two-point", "first"} or array_like, optional
+            Start-up (see the module docs). Ignored for tracks already running
+            in ``state``.
+        state : FilterState, optional
+            Continue from a previous result's ``state``.
+        out : ndarray, optional
+            Preallocated C-contiguous estimate array of shape
+            ``(n, *sample_shape)`` and the dtype of ``z``, filled in place.
+        return_residuals : bool, optional
+            Also return the residuals ``z - H x_p``.
+        threads : int, optional
+            ``None``: rayon's global pool; ``1``: the calling thread; ``k``:
+            a pool of ``k`` threads (kept for reuse). Results are
+            bit-identical for any value.
+
+        Returns
+        -------
+        FilterResult
+
+        Raises
+        ------
+        TypeError
+            ``z`` not float32/float64; ``out`` not an array.
+        ValueError
+            Wrong shapes, ``out`` of wrong shape/dtype or overlapping ``z``,
+            bad ``init``/``state``/``threads``.
+        """
+        return self._run(z, init, state, out, return_residuals, threads, None, None, 1)
+
+    def _run(self, z: Any, init: Any, state: Optional[FilterState], out: Optional[np.ndarray], return_residuals: bool, threads: Optional[int], sgain: Optional[np.ndarray], lag: Optional[int], n_sgain: int) -> FilterResult:
+        if threads is not None and (not isinstance(threads, (int, np.integer)) or isinstance(threads, bool) or threads < 1):
+            raise ValueError(f"threads must be a positive integer or None, got {threads!r}")
+        z3, (n_tracks, n_samples), single = self._prepare_z(z)
+        self._check_params(n_tracks)
+        if n_sgain not in (1, n_tracks):
+            raise ValueError(f"smoother_gain has {n_sgain} gains for {n_tracks} tracks")
+        packed, init_mode = self._initial_state(init, state, n_tracks)
+        zarr = z if isinstance(z, np.ndarray) else z3
+        shape = (n_samples,) if single else (n_tracks, n_samples)
+        o = self._out(out, zarr, z3, shape)
+        out3 = o.reshape((self.n, n_tracks, n_samples))
+        res3 = None
+        if return_residuals:
+            res3 = np.empty((n_tracks, n_samples, self.m), dtype=z3.dtype)
+        self._kernel(z3, packed, init_mode, out3, res3, None if threads is None else int(threads), sgain, None if lag is None else int(lag))
+        residuals = None
+        if res3 is not None:
+            residuals = res3.reshape(np.shape(z)) if isinstance(z, np.ndarray) else res3
+        return FilterResult(o, residuals, FilterState(packed, self.n, single))
+
+    def _default_smoother_gain(self) -> np.ndarray:
+        raise ValueError(f"{type(self).__name__}.smooth needs the noise model: pass Q and R (or smoother_gain)")
+
+    def smoother_gain(self, Q: Any = None, R: Any = None) -> np.ndarray:
+        """Backward gain ``A = P_filt Phi^T P_pred^-1`` of the steady-state
+        RTS smoother for the model (Q, R); for an alpha-beta filter without
+        (Q, R), that of its Kalman-equivalent model."""
+        if Q is None and R is None:
+            return self._default_smoother_gain()
+        if Q is None or R is None:
+            raise ValueError("give both Q and R")
+        if self.n_params != 1:
+            raise ValueError("per-track filters need smoother_gain= (one gain per track) instead of Q and R")
+        a = self.covariances(Q, R).smoother_gain
+        if a is None:
+            raise np.linalg.LinAlgError("the predicted covariance is singular: no RTS smoother gain")
+        return a[None]
+
+    def smooth(
+        self,
+        z: Any,
+        *,
+        lag: Optional[int] = None,
+        Q: Any = None,
+        R: Any = None,
+        smoother_gain: Any = None,
+        init: Any = "two-point",
+        out: Optional[np.ndarray] = None,
+        return_residuals: bool = False,
+        threads: Optional[int] = None,
+    ) -> FilterResult:
+        r"""Filter, then smooth with the steady-state RTS smoother.
+
+        ``x_s[k] = x_f[k] + A (x_s[k+1] - Phi x_f[k])`` with the constant
+        backward gain ``A = P_filt Phi^T P_pred^-1`` (paper 001, eq (22)),
+        over the whole track (``lag=None``) or as the fixed-lag smoother
+        ``x_{k|k+lag}``. Same layouts, NaN rules and options as :meth:`run`;
+        samples whose filtered estimate is NaN (start-up) stay as filtered.
+        Each track is smoothed right after it is filtered, in the same pass.
+
+        Parameters
+        ----------
+        lag : int, optional
+            Fixed lag ``L >= 0`` (``0`` returns the filtered estimates).
+        Q, R : array_like, optional
+            Noise model for the backward gain. Alpha-beta filters default to
+            their Kalman-equivalent model.
+        smoother_gain : array_like, optional
+            The backward gain ``A`` itself, shape ``(n, n)`` or
+            ``(n_tracks, n, n)``.
+        """
+        if lag is not None and (not isinstance(lag, (int, np.integer)) or isinstance(lag, bool) or lag < 0):
+            raise ValueError(f"lag must be a non-negative integer or None, got {lag!r}")
+        if smoother_gain is not None:
+            if Q is not None or R is not None:
+                raise ValueError("give smoother_gain or (Q, R), not both")
+            a = as_float_array("smoother_gain", smoother_gain)
+            if a.ndim == 2:
+                a = a[None]
+            if a.ndim != 3 or a.shape[1:] != (self.n, self.n) or not np.all(np.isfinite(a)):
+                raise ValueError(f"smoother_gain must be finite with shape ({self.n}, {self.n}) or (n_tracks, {self.n}, {self.n}), got {np.shape(smoother_gain)}")
+        else:
+            a = self.smoother_gain(Q, R)
+        a = np.ascontiguousarray(a, dtype=np.float64)
+        return self._run(z, init, None, out, return_residuals, threads, a.reshape(-1), lag, a.shape[0])
+
+    def tracker(self, n_tracks: int = 1, init: Any = "two-point") -> "Tracker":
+        """A :class:`Tracker` that holds this filter's state between chunks."""
+        return Tracker(self, n_tracks=n_tracks, init=init)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(n={self.n}, m={self.m}, n_params={self.n_params})"
+
+
+class AlphaBetaFilter(FixedGainFilter):
+    r"""The alpha-beta filter (state ``[position, velocity]``).
+
+    Parameters
+    ----------
+    alpha, beta : float or array_like of shape (n_tracks,)
+        Gains; the physical gains are ``(alpha, beta / T)``.
+    T : float or array_like of shape (n_tracks,)
+        Sampling period.
+    allow_unstable : bool, optional
+        Accept gains outside the stable region ``alpha > 0, beta > 0,
+        2 alpha + beta < 4``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from abkit import AlphaBetaFilter, alphabeta
+    >>> f = AlphaBetaFilter.from_design(alphabeta.from_snr(0.1), T=0.5)
+    >>> z = 2.0 * np.arange(10.0)           # constant velocity 4 per second
+    >>> r = f.run(z)
+    >>> bool(np.allclose(r.velocity[1:], 4.0))
+    True
+    """
+
+    _kinematic = True
+
+    def __init__(self, alpha: Any, beta: Any, T: Any, *, allow_unstable: bool = False):
+        a, b, t = (as_float_array(n, v) for n, v in (("alpha", alpha), ("beta", beta), ("T", T)))
+        for name, v in (("alpha", a), ("beta", b), ("T", t)):
+            if v.ndim > 1:
+                raise ValueError(f"{name} must be a scalar or a 1-D array (one per track), got shape {v.shape}")
+        check_positive("T", t)
+        for name, v in (("alpha", a), ("beta", b)):
+            if not np.all(np.isfinite(v)):
+                raise ValueError(f"{name} must be finite")
+        try:
+            a, b, t = np.broadcast_arrays(a, b, t)
+        except ValueError:
+            raise ValueError(f"alpha {a.shape}, beta {b.shape} and T {t.shape} do not broadcast") from None
+        P = a.size if a.ndim else 1
+        a, b, t = a.reshape(P), b.reshape(P), t.reshape(P)
+        stable = (a > 0) & (b > 0) & (2 * a + b < 4)
+        if not stable.all() and not allow_unstable:
+            i = int(np.argmin(stable))
+            raise ValueError(
+                f"alpha={a[i]!r}, beta={b[i]!r} give an unstable filter (need alpha > 0, beta > 0, "
+                f"2*alpha + beta < 4); pass allow_unstable=True to run it anyway"
+            )
+        phi = np.zeros((P, 2, 2))
+        phi[:, 0, 0] = phi[:, 1, 1] = 1.0
+        phi[:, 0, 1] = t
+        k = np.stack([a, b / t], axis=-1)[:, :, None]
+        super().__init__(phi, np.array([[1.0, 0.0]]), k, t, allow_unstable=True)
+        self.allow_unstable = allow_unstable
+        self._params = np.ascontiguousarray(np.stack([a, b, t], axis=-1))
+        self.alpha = a[0] if P == 1 else a
+        self.beta = b[0] if P == 1 else b
+        self.T = t[0] if P == 1 else t
+
+    @classmethod
+    def from_design(cls, design: Any, T: Optional[Any] = None, **kw: Any) -> "AlphaBetaFilter":
+        """Filter from an :class:`abkit.AlphaBeta` design (scalar or 1-D)."""
+        if T is None:
+            T = design.T
+            if T is None:
+                raise ValueError("T must be given: the design was made without a sampling period")
+        return cls(design.alpha, design.beta, T, **kw)
+
+    def _kernel(self, z3: np.ndarray, packed: np.ndarray, init: str, out3: np.ndarray, res3: Optional[np.ndarray], threads: Optional[int], sgain: Optional[np.ndarray] = None, lag: Optional[int] = None) -> None:
+        _abkit.filter_alphabeta(z3, self._params, init, packed, out3, res3, threads, sgain, lag)
+
+    def _default_smoother_gain(self) -> np.ndarray:
+        """Backward gain of the Kalman-equivalent model: the SNR r whose
+        Kalman design has this alpha (abkit.alphabeta.analyze), with the
+        covariances of these gains at that r."""
+        from . import alphabeta as _ab
+
+        a = np.atleast_1d(self.alpha)
+        b = np.atleast_1d(self.beta)
+        t = np.atleast_1d(self.T)
+        if np.any(a >= 1):
+            raise ValueError("alpha >= 1 has no Kalman-equivalent model; pass Q and R (or smoother_gain) to smooth()")
+        d = _ab.analyze(a, b)
+        nn = np.zeros((a.size, 2, 2))
+        nn[:, 0, 0] = 1.0
+        nn[:, 1, 1] = 1.0 / t
+        p = nn @ d.covariance_filtered @ nn
+        m = nn @ d.covariance_predicted @ nn
+        return p @ np.transpose(self._phi, (0, 2, 1)) @ np.linalg.inv(m)
+
+    def covariances(self, Q: Any = None, R: Any = None, *, sigma_w: Optional[float] = None, sigma_v: Optional[float] = None) -> "SteadyStateCovariance":
+        """Theoretical steady-state covariances (see :meth:`FixedGainFilter.covariances`).
+
+        Give ``Q`` and ``R``, or the white-acceleration model of paper 000
+        through ``sigma_w`` and ``sigma_v`` (``Q = sigma_w^2 d d^T``,
+        ``d = [T^2/2, T]``, ``R = sigma_v^2``).
+        """
+        if sigma_w is not None or sigma_v is not None:
+            if sigma_w is None or sigma_v is None or Q is not None or R is not None:
+                raise ValueError("give either Q and R, or sigma_w and sigma_v")
+            if self.n_params != 1:
+                raise ValueError("covariances() needs a filter with one parameter set")
+            t = float(self._t[0])
+            d = np.array([[t * t / 2], [t]])
+            Q = float(sigma_w) ** 2 * (d @ d.T)
+            R = [[float(sigma_v) ** 2]]
+        return super().covariances(Q, R)
+
+
+class AlphaBetaGammaFilter(FixedGainFilter):
+    r"""The alpha-beta-gamma filter (state ``[position, velocity, acceleration]``).
+
+    Parameters
+    ----------
+    alpha, beta, gamma : float or array_like of shape (n_tracks,)
+        Gains in the chosen convention.
+    T : float or array_like
+        Sampling period.
+    convention : {"standard", "chen-chui", "ghk"}
+        How ``gamma`` maps to the acceleration gain (see
+        :data:`ABG_CONVENTIONS`): ``gamma/(2T^2)`` (Bar-Shalom, the default),
+        ``gamma/T^2`` (Chen & Chui, paper 004) or ``2 gamma/T^2`` (FilterPy's
+        ``k``).
+    allow_unstable : bool, optional
+    """
+
+    _kinematic = True
+
+    def __init__(self, alpha: Any, beta: Any, gamma: Any, T: Any, *, convention: str = "standard", allow_unstable: bool = False):
+        if convention not in ABG_CONVENTIONS:
+            raise ValueError(f"convention must be one of {sorted(ABG_CONVENTIONS)}, got {convention!r}")
+        arrs = [as_float_array(n, v) for n, v in (("alpha", alpha), ("beta", beta), ("gamma", gamma), ("T", T))]
+        for name, v in zip(("alpha", "beta", "gamma", "T"), arrs):
+            if v.ndim > 1:
+                raise ValueError(f"{name} must be a scalar or a 1-D array (one per track), got shape {v.shape}")
+            if not np.all(np.isfinite(v)):
+                raise ValueError(f"{name} must be finite")
+        check_positive("T", arrs[3])
+        try:
+            a, b, g, t = np.broadcast_arrays(*arrs)
+        except ValueError:
+            raise ValueError("alpha, beta, gamma and T do not broadcast") from None
+        P = a.size if a.ndim else 1
+        a, b, g, t = (x.reshape(P) for x in (a, b, g, t))
+        c = ABG_CONVENTIONS[convention]
+        phi = np.zeros((P, 3, 3))
+        phi[:, 0, 0] = phi[:, 1, 1] = phi[:, 2, 2] = 1.0
+        phi[:, 0, 1] = phi[:, 1, 2] = t
+        phi[:, 0, 2] = t * t / 2
+        k = np.stack([a, b / t, c * g / (t * t)], axis=-1)[:, :, None]
+        super().__init__(phi, np.array([[1.0, 0.0, 0.0]]), k, t, allow_unstable=allow_unstable)
+        self.convention = convention
+        self.alpha = a[0] if P == 1 else a
+        self.beta = b[0] if P == 1 else b
+        self.gamma = g[0] if P == 1 else g
+        self.T = t[0] if P == 1 else t
+
+
+class Tracker:
+    """Real-time wrapper: holds a filter's state between chunks.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from abkit import AlphaBetaFilter, Tracker
+    >>> trk = Tracker(AlphaBetaFilter(0.5, 0.2, 1.0))
+    >>> a = trk.update([0.0, 1.0, 2.0])
+    >>> b = trk.update([3.0, 4.0])
+    >>> b.position.shape
+    (2,)
+    """
+
+    def __init__(self, filt: FixedGainFilter, n_tracks: int = 1, init: Any = "two-point"):
+        if not isinstance(filt, FixedGainFilter):
+            raise TypeError("filt must be an abkit filter")
+        if not isinstance(n_tracks, (int, np.integer)) or n_tracks < 1:
+            raise ValueError(f"n_tracks must be a positive integer, got {n_tracks!r}")
+        self.filter = filt
+        self.init = init
+        self.n_tracks = int(n_tracks)
+        self.state: Optional[FilterState] = None
+        self.samples = 0
+
+    def update(self, z_chunk: Any, **kw: Any) -> FilterResult:
+        """Filter the next chunk (same layout as ``run``) and keep the state."""
+        z = np.asarray(z_chunk) if not isinstance(z_chunk, np.ndarray) else z_chunk
+        if z.dtype.kind in "iub":
+            z = z.astype(np.float64)
+        res = self.filter.run(z, init=self.init, state=self.state, **kw)
+        self.state = res.state
+        self.samples += res.states.shape[-1]
+        return res
+
+    def reset(self) -> None:
+        """Forget the state (the next chunk starts new tracks)."""
+        self.state = None
+        self.samples = 0
+
+
+class SteadyStateCovariance:
+    """Theoretical steady-state error covariances of a fixed-gain filter.
+
+    Attributes
+    ----------
+    predicted : ndarray (n, n)
+        One-step prediction error covariance ``M``.
+    filtered : ndarray (n, n)
+        Filtered error covariance ``P``.
+    smoothed : ndarray (n, n) or None
+        Steady-state fixed-interval (RTS) smoother covariance with the
+        constant backward gain ``A = P Phi^T M^-1`` (paper 001 eq (22));
+        exact when the filter's gain is the Kalman gain of (Q, R).
+    smoother_gain : ndarray (n, n) or None
+    """
+
+    __slots__ = ("predicted", "filtered", "smoothed", "smoother_gain")
+
+    def __init__(self, predicted: np.ndarray, filtered: np.ndarray, smoothed: Optional[np.ndarray], smoother_gain: Optional[np.ndarray]):
+        self.predicted = predicted
+        self.filtered = filtered
+        self.smoothed = smoothed
+        self.smoother_gain = smoother_gain
+
+    def __repr__(self) -> str:
+        return f"SteadyStateCovariance(filtered=\n{self.filtered},\npredicted=\n{self.predicted})"
+
+
+def _dlyap(a: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Solve X = A X A^T + Q for small n (Kronecker form)."""
+    n = a.shape[0]
+    lhs = np.eye(n * n) - np.kron(a, a)
+    x = np.linalg.solve(lhs, q.reshape(-1)).reshape(n, n)
+    return 0.5 * (x + x.T)
+
+
+def _steady_covariance(phi: np.ndarray, h: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray) -> SteadyStateCovariance:
+    n = phi.shape[0]
+    ikh = np.eye(n) - k @ h
+    a = phi @ ikh  # predicted-error transition
+    if np.max(np.abs(np.linalg.eigvals(a))) >= 1:
+        raise ValueError("the filter is unstable: no steady-state covariance exists")
+    # M = Phi [(I-KH) M (I-KH)^T + K R K^T] Phi^T + Q
+    m = _dlyap(a, phi @ k @ r @ k.T @ phi.T + q)
+    p = ikh @ m @ ikh.T + k @ r @ k.T
+    p = 0.5 * (p + p.T)
+    smoothed = gain = None
+    try:
+        gain = p @ phi.T @ np.linalg.inv(m)
+        # P_s = P + A (P_s - M) A^T  <=>  P_s = A P_s A^T + (P - A M A^T)
+        smoothed = _dlyap(gain, p - gain @ m @ gain.T)
+    except np.linalg.LinAlgError:
+        pass
+    return SteadyStateCovariance(m, p, smoothed, gain)
