@@ -12,12 +12,16 @@ __all__ = [
     "alphabeta_from_snr",
     "alphabeta_from_tracking_error",
     "alphabeta_from_tracking_index",
+    "filter_alphabeta",
+    "filter_fixed_gain",
     "ALPHABETA_FIELDS",
+    "STATE_WIDTH",
     "__version__",
 ]
 
 __version__: str
 ALPHABETA_FIELDS: list[str]
+STATE_WIDTH: int
 
 _F64 = npt.NDArray[np.float64]
 
@@ -29,3 +33,34 @@ def alphabeta_from_bandwidth(bn_t: _F64, damping: _F64) -> _F64: ...
 def alphabeta_from_natural_frequency(omega_n: _F64, T: _F64, damping: _F64) -> _F64: ...
 def alphabeta_analyze(alpha: _F64, beta: _F64) -> _F64: ...
 def alphabeta_error_covariance(alpha: _F64, beta: _F64, r_true: _F64) -> _F64: ...
+
+_FArr = npt.NDArray[np.float32] | npt.NDArray[np.float64]
+
+def filter_alphabeta(
+    z: _FArr,
+    params: _F64,
+    init: str,
+    state: _F64,
+    out: _FArr,
+    resid: _FArr | None = None,
+    threads: int | None = None,
+    smoother_gain: _F64 | None = None,
+    lag: int | None = None,
+) -> None: ...
+def filter_fixed_gain(
+    z: _FArr,
+    n: int,
+    m: int,
+    phi: _F64,
+    h: _F64,
+    k: _F64,
+    h_pinv: _F64,
+    t: _F64,
+    init: str,
+    state: _F64,
+    out: _FArr,
+    resid: _FArr | None = None,
+    threads: int | None = None,
+    smoother_gain: _F64 | None = None,
+    lag: int | None = None,
+) -> None: ...

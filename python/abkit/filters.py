@@ -202,7 +202,7 @@ class FixedGainFilter:
 
     _kinematic = False
 
-    def __init__(self, Phi: Any, H: Any, K: Any, T: float = 1.0, *, allow_unstable: bool = False):
+    def __init__(self, Phi: Any, H: Any, K: Any, T: Any = 1.0, *, allow_unstable: bool = False):
         phi = as_float_array("Phi", Phi)
         if phi.ndim not in (2, 3) or phi.shape[-1] != phi.shape[-2]:
             raise ValueError(f"Phi must have shape (n, n) or (n_tracks, n, n), got {phi.shape}")
