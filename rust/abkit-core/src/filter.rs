@@ -331,79 +331,106 @@ pub fn run_track<T: IoFloat, const N: usize, const M: usize>(
     st.x[..N].copy_from_slice(&x);
 }
 
-/// Alpha-beta specialisation (`N = 2`, `M = 1`, `Phi = [[1, T], [0, 1]]`,
-/// `K = [alpha, beta / T]`): the update is arranged so that the per-sample
-/// dependency chain is two fused multiply-adds,
-/// `x' = (1 - alpha)(x + T v) + alpha z`, `v' = v + g2 (z - (x + T v))`.
-pub fn run_track_ab<T: IoFloat>(
-    alpha: f64,
-    beta: f64,
+/// Whether the fused multiply-add kernels are used on this machine (decided
+/// once per process, so results never depend on anything but the data).
+pub fn uses_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        static FMA: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        *FMA.get_or_init(|| std::is_x86_feature_detected!("fma"))
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        true
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        false
+    }
+}
+
+#[inline(always)]
+fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+/// Constants of one alpha-beta filter.
+#[derive(Debug, Clone, Copy)]
+struct AbConst {
     t: f64,
-    init: Init,
+    alpha: f64,
+    one_minus_alpha: f64,
+    g2: f64,
+}
+
+impl AbConst {
+    fn new(alpha: f64, beta: f64, t: f64) -> Self {
+        AbConst {
+            t,
+            alpha,
+            one_minus_alpha: 1.0 - alpha,
+            g2: beta / t,
+        }
+    }
+}
+
+/// One alpha-beta step. The update is arranged so that the loop-carried
+/// dependency chain is two multiply-adds for both state components:
+/// `x_p = x + T v`, `x' = (1 - alpha) x_p + alpha z`,
+/// `v' = (v + g2 z) - g2 x_p` (the terms with `z` are off the chain).
+/// Returns `(x', v', residual)`; a NaN `z` coasts.
+#[inline(always)]
+fn ab_step<const FMA: bool>(c: &AbConst, x: f64, v: f64, z: f64) -> (f64, f64, f64) {
+    let xp = madd::<FMA>(c.t, v, x);
+    let e = z - xp;
+    let w = madd::<FMA>(c.g2, z, v);
+    if e.is_nan() {
+        (xp, v, e)
+    } else {
+        (
+            madd::<FMA>(c.one_minus_alpha, xp, c.alpha * z),
+            madd::<FMA>(-c.g2, xp, w),
+            e,
+        )
+    }
+}
+
+/// Steady-state alpha-beta loop of one track over samples `k0..n`.
+#[inline(always)]
+fn ab_loop<T: IoFloat, const FMA: bool>(
+    c: &AbConst,
     st: &mut TrackState,
-    z: &[T],
+    k0: usize,
+    n: usize,
+    z: impl Fn(usize) -> f64,
     out: &mut TrackOut<'_, T, 2>,
 ) {
-    let g = Gains::<2, 1> {
-        phi: [[1.0, t], [0.0, 1.0]],
-        h: [[1.0, 0.0]],
-        k: [[alpha], [beta / t]],
-        h_pinv: [[1.0], [0.0]],
-        t,
-    };
-    let n = z.len();
-    // Start-up with the general code, then the fast loop from where it stopped.
-    let k0 = startup_len(init, st, z);
-    if k0 > 0 {
-        let (s0, s1) = {
-            let [a, b] = &mut out.states;
-            (&mut a[..k0], &mut b[..k0])
-        };
-        let mut head = TrackOut {
-            states: [s0, s1],
-            resid: out.resid.as_deref_mut().map(|r| &mut r[..k0]),
-        };
-        run_track(&g, init, st, k0, |k| [z[k].to_f64()], &mut head);
-    }
-    if st.phase < 2 {
-        return;
-    }
-    let (one_m_a, g2) = (1.0 - alpha, beta / t);
     let (mut x, mut v) = (st.x[0], st.x[1]);
     let [xs, vs] = &mut out.states;
-    let (xs, vs) = (&mut xs[k0..n], &mut vs[k0..n]);
-    let zs = &z[k0..n];
+    let (xs, vs) = (&mut xs[..n], &mut vs[..n]);
     match out.resid.as_deref_mut() {
         None => {
-            for ((zk, xo), vo) in zs.iter().zip(xs.iter_mut()).zip(vs.iter_mut()) {
-                let zk = zk.to_f64();
-                let xp = t.mul_add(v, x);
-                let e = zk - xp;
-                if e.is_nan() {
-                    x = xp;
-                } else {
-                    x = one_m_a.mul_add(xp, alpha * zk);
-                    v = g2.mul_add(e, v);
-                }
-                *xo = T::from_f64(x);
-                *vo = T::from_f64(v);
+            for k in k0..n {
+                let (x1, v1, _) = ab_step::<FMA>(c, x, v, z(k));
+                x = x1;
+                v = v1;
+                xs[k] = T::from_f64(x);
+                vs[k] = T::from_f64(v);
             }
         }
         Some(r) => {
-            let r = &mut r[k0..n];
-            for (((zk, xo), vo), ro) in zs.iter().zip(xs.iter_mut()).zip(vs.iter_mut()).zip(r) {
-                let zk = zk.to_f64();
-                let xp = t.mul_add(v, x);
-                let e = zk - xp;
-                if e.is_nan() {
-                    x = xp;
-                } else {
-                    x = one_m_a.mul_add(xp, alpha * zk);
-                    v = g2.mul_add(e, v);
-                }
-                *xo = T::from_f64(x);
-                *vo = T::from_f64(v);
-                *ro = T::from_f64(e);
+            let r = &mut r[..n];
+            for k in k0..n {
+                let (x1, v1, e) = ab_step::<FMA>(c, x, v, z(k));
+                x = x1;
+                v = v1;
+                xs[k] = T::from_f64(x);
+                vs[k] = T::from_f64(v);
+                r[k] = T::from_f64(e);
             }
         }
     }
@@ -411,13 +438,173 @@ pub fn run_track_ab<T: IoFloat>(
     st.x[1] = v;
 }
 
-/// Number of leading samples of `z` consumed by the start-up phase (a
-/// dry run of the phase logic; the state is not changed).
-fn startup_len<T: IoFloat>(init: Init, st: &TrackState, z: &[T]) -> usize {
+/// Lanes of the interleaved alpha-beta kernel.
+pub const AB_LANES: usize = 8;
+
+/// `AB_LANES` running tracks at once (contiguous rows, no residuals): the
+/// tracks' dependency chains overlap, so throughput is bounded by memory,
+/// not by the latency of one track's recursion. Same arithmetic per track as
+/// [`ab_loop`], so results are bit-identical to running the tracks alone.
+#[inline(always)]
+fn ab_lanes<T: IoFloat, const FMA: bool>(
+    c: &[AbConst; AB_LANES],
+    x: &mut [f64; AB_LANES],
+    v: &mut [f64; AB_LANES],
+    k0: usize,
+    n: usize,
+    z: [&[T]; AB_LANES],
+    xs: [&mut [T]; AB_LANES],
+    vs: [&mut [T]; AB_LANES],
+) {
+    let z = z.map(|s| &s[..n]);
+    let xs = xs.map(|s| &mut s[..n]);
+    let vs = vs.map(|s| &mut s[..n]);
+    for k in k0..n {
+        for l in 0..AB_LANES {
+            let (x1, v1, _) = ab_step::<FMA>(&c[l], x[l], v[l], z[l][k].to_f64());
+            x[l] = x1;
+            v[l] = v1;
+            xs[l][k] = T::from_f64(x1);
+            vs[l][k] = T::from_f64(v1);
+        }
+    }
+}
+
+type Job<'a, T, const N: usize> = (usize, &'a mut TrackState, TrackOut<'a, T, N>);
+
+/// Alpha-beta filtering of a group of tracks (the unit of parallel work).
+#[inline(always)]
+fn ab_group<T: IoFloat, const FMA: bool>(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, T>,
+    group: &mut [Job<'_, T, 2>],
+) {
+    let n = z.n_samples;
+    let konst = |i: usize| {
+        let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
+        (AbConst::new(a, b, t), a, b, t)
+    };
+    // Start-up of every track with the general code.
+    let mut k0 = [0usize; AB_LANES];
+    let lanes_ok = group.len() == AB_LANES;
+    for (g, (i, st, o)) in group.iter_mut().enumerate() {
+        let (_, a, b, t) = konst(*i);
+        let gains = Gains::<2, 1> {
+            phi: [[1.0, t], [0.0, 1.0]],
+            h: [[1.0, 0.0]],
+            k: [[a], [b / t]],
+            h_pinv: [[1.0], [0.0]],
+            t,
+        };
+        let zf = |k: usize| z.at(*i, k, 0);
+        let len = startup_len(init, st, n, &zf);
+        if len > 0 {
+            let [s0, s1] = &mut o.states;
+            let mut head = TrackOut {
+                states: [&mut s0[..len], &mut s1[..len]],
+                resid: o.resid.as_deref_mut().map(|r| &mut r[..len]),
+            };
+            run_track(&gains, init, st, len, |k| [zf(k)], &mut head);
+        }
+        if g < AB_LANES {
+            k0[g] = len;
+        }
+    }
+    let lanes_ok = lanes_ok
+        && group
+            .iter()
+            .all(|(i, st, o)| st.phase == 2 && o.resid.is_none() && z.row(*i).is_some());
+    if !lanes_ok {
+        for (idx, (i, st, o)) in group.iter_mut().enumerate() {
+            if st.phase < 2 {
+                continue;
+            }
+            let (c, ..) = konst(*i);
+            let start = if idx < AB_LANES { k0[idx] } else { 0 };
+            match z.row(*i) {
+                Some(row) => ab_loop::<T, FMA>(&c, st, start, n, |k| row[k].to_f64(), o),
+                None => ab_loop::<T, FMA>(&c, st, start, n, |k| z.at(*i, k, 0), o),
+            }
+        }
+        return;
+    }
+    // Bring every track to a common start, then run the lanes.
+    let kmax = k0.iter().copied().max().unwrap_or(0);
+    let mut c = [AbConst::new(0.5, 0.1, 1.0); AB_LANES];
+    let mut x = [0.0; AB_LANES];
+    let mut v = [0.0; AB_LANES];
+    let mut rows: [&[T]; AB_LANES] = [&[]; AB_LANES];
+    for (l, (i, st, o)) in group.iter_mut().enumerate() {
+        c[l] = konst(*i).0;
+        let row = z.row(*i).unwrap_or(&[]);
+        rows[l] = row;
+        ab_loop::<T, FMA>(&c[l], st, k0[l], kmax, |k| row[k].to_f64(), o);
+        x[l] = st.x[0];
+        v[l] = st.x[1];
+    }
+    let (xs, vs): (Vec<&mut [T]>, Vec<&mut [T]>) = group
+        .iter_mut()
+        .map(|(_, _, o)| {
+            let [a, b] = &mut o.states;
+            (&mut **a, &mut **b)
+        })
+        .unzip();
+    if let (Ok(xs), Ok(vs)) = (
+        <[&mut [T]; AB_LANES]>::try_from(xs),
+        <[&mut [T]; AB_LANES]>::try_from(vs),
+    ) {
+        ab_lanes::<T, FMA>(&c, &mut x, &mut v, kmax, n, rows, xs, vs);
+    }
+    for (l, (_, st, _)) in group.iter_mut().enumerate() {
+        st.x[0] = x[l];
+        st.x[1] = v[l];
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+fn ab_group_fma<T: IoFloat>(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, T>,
+    group: &mut [Job<'_, T, 2>],
+) {
+    ab_group::<T, true>(params, init, z, group)
+}
+
+fn ab_group_dispatch<T: IoFloat>(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, T>,
+    group: &mut [Job<'_, T, 2>],
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if uses_fma() {
+            // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
+            unsafe { ab_group_fma(params, init, z, group) };
+            return;
+        }
+        ab_group::<T, false>(params, init, z, group)
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        ab_group::<T, true>(params, init, z, group)
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        ab_group::<T, false>(params, init, z, group)
+    }
+}
+
+/// Number of leading samples consumed by the start-up phase (a dry run of
+/// the phase logic; the state is not changed).
+fn startup_len(init: Init, st: &TrackState, n: usize, z: &impl Fn(usize) -> f64) -> usize {
     let mut phase = st.phase;
     let mut k = 0;
-    while phase < 2 && k < z.len() {
-        if !z[k].to_f64().is_nan() {
+    while phase < 2 && k < n {
+        if !z(k).is_nan() {
             phase = if phase == 0 && init == Init::TwoPoint {
                 1
             } else {
@@ -429,12 +616,13 @@ fn startup_len<T: IoFloat>(init: Init, st: &TrackState, z: &[T]) -> usize {
     k
 }
 
-/// Run many tracks in parallel (rayon's global pool) or serially.
+/// Run many tracks in parallel (rayon's global pool) or serially, in groups
+/// of up to `group_size` consecutive tracks.
 ///
-/// `track(i, state, out)` filters track `i`. `states` holds the per-track
-/// state (updated in place); `out` is the estimate buffer `(N, n_tracks,
-/// n_samples)` component-major; `resid` the optional residual buffer
-/// `(n_tracks, n_samples, m)`.
+/// `group(jobs)` filters the tracks of one group. `states` holds the
+/// per-track state (updated in place); `out` is the estimate buffer `(N,
+/// n_tracks, n_samples)` component-major; `resid` the optional residual
+/// buffer `(n_tracks, n_samples, m)`.
 pub fn run_batch<T: IoFloat, const N: usize>(
     n_tracks: usize,
     n_samples: usize,
@@ -443,7 +631,8 @@ pub fn run_batch<T: IoFloat, const N: usize>(
     out: &mut [T],
     resid: Option<&mut [T]>,
     parallel: bool,
-    track: impl Fn(usize, &mut TrackState, &mut TrackOut<'_, T, N>) + Sync + Send,
+    group_size: usize,
+    group: impl Fn(&mut [Job<'_, T, N>]) + Sync + Send,
 ) -> Result<()> {
     let per = n_tracks * n_samples;
     if states.len() != n_tracks || out.len() != N * per {
@@ -461,13 +650,12 @@ pub fn run_batch<T: IoFloat, const N: usize>(
     if per == 0 {
         return Ok(());
     }
-    // Per-track views: N component rows + residual row.
     let mut comps: Vec<std::slice::ChunksExactMut<'_, T>> = out
         .chunks_exact_mut(per)
         .map(|c| c.chunks_exact_mut(n_samples))
         .collect();
     let mut resid_rows = resid.map(|r| r.chunks_exact_mut(n_samples * m));
-    let mut jobs: Vec<(usize, &mut TrackState, TrackOut<'_, T, N>)> = Vec::with_capacity(n_tracks);
+    let mut jobs: Vec<Job<'_, T, N>> = Vec::with_capacity(n_tracks);
     for (i, st) in states.iter_mut().enumerate() {
         let mut rows: Vec<&mut [T]> = Vec::with_capacity(N);
         for c in comps.iter_mut() {
@@ -492,13 +680,16 @@ pub fn run_batch<T: IoFloat, const N: usize>(
             },
         ));
     }
-    if parallel && n_tracks > 1 {
-        jobs.into_par_iter()
-            .with_min_len(1.max(16_384 / n_samples.max(1)))
-            .for_each(|(i, st, mut o)| track(i, st, &mut o));
+    let gs = group_size.max(1);
+    if parallel && n_tracks > gs {
+        // Enough groups per task that scheduling overhead stays small.
+        let min_groups = 1.max(65_536 / (gs * n_samples).max(1));
+        jobs.par_chunks_mut(gs)
+            .with_min_len(min_groups)
+            .for_each(&group);
     } else {
-        for (i, st, mut o) in jobs {
-            track(i, st, &mut o);
+        for g in jobs.chunks_mut(gs) {
+            group(g);
         }
     }
     Ok(())
@@ -546,40 +737,44 @@ pub fn filter_general<T: IoFloat, const N: usize, const M: usize>(
         out,
         resid,
         parallel,
-        |i, st, o| {
-            let g = &gains[if gains.len() == 1 { 0 } else { i }];
-            match z.row(i) {
-                Some(row) => run_track(
-                    g,
-                    init,
-                    st,
-                    z.n_samples,
-                    |k| {
-                        let mut a = [0.0; M];
-                        a[0] = row[k].to_f64();
-                        a
-                    },
-                    o,
-                ),
-                None => run_track(
-                    g,
-                    init,
-                    st,
-                    z.n_samples,
-                    |k| std::array::from_fn(|j| z.at(i, k, j)),
-                    o,
-                ),
-            }
-            if let Some(sm) = &smoother {
-                let a = &sm.a[if sm.a.len() == 1 { 0 } else { i }];
-                crate::smooth::smooth_track(&g.phi, a, sm.lag, &mut o.states);
+        1,
+        |group| {
+            for (i, st, o) in group.iter_mut() {
+                let i = *i;
+                let g = &gains[if gains.len() == 1 { 0 } else { i }];
+                match z.row(i) {
+                    Some(row) => run_track(
+                        g,
+                        init,
+                        st,
+                        z.n_samples,
+                        |k| {
+                            let mut a = [0.0; M];
+                            a[0] = row[k].to_f64();
+                            a
+                        },
+                        o,
+                    ),
+                    None => run_track(
+                        g,
+                        init,
+                        st,
+                        z.n_samples,
+                        |k| std::array::from_fn(|j| z.at(i, k, j)),
+                        o,
+                    ),
+                }
+                if let Some(sm) = &smoother {
+                    let a = &sm.a[if sm.a.len() == 1 { 0 } else { i }];
+                    crate::smooth::smooth_track(&g.phi, a, sm.lag, &mut o.states);
+                }
             }
         },
     )
 }
 
 /// Filter a batch with alpha-beta filters (`params[i] = (alpha, beta, T)`,
-/// one for all tracks or one per track).
+/// one for all tracks or one per track), optionally smoothing each track.
 pub fn filter_ab<T: IoFloat>(
     params: &[(f64, f64, f64)],
     init: Init,
@@ -609,24 +804,16 @@ pub fn filter_ab<T: IoFloat>(
         out,
         resid,
         parallel,
-        |i, st, o| {
-            let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
-            match z.row(i) {
-                Some(row) => run_track_ab(a, b, t, init, st, row, o),
-                None => {
-                    let g = Gains::<2, 1> {
-                        phi: [[1.0, t], [0.0, 1.0]],
-                        h: [[1.0, 0.0]],
-                        k: [[a], [b / t]],
-                        h_pinv: [[1.0], [0.0]],
-                        t,
-                    };
-                    run_track(&g, init, st, z.n_samples, |k| [z.at(i, k, 0)], o)
-                }
-            }
+        AB_LANES,
+        |group| {
+            ab_group_dispatch(params, init, z, group);
             if let Some(sm) = &smoother {
-                let a = &sm.a[if sm.a.len() == 1 { 0 } else { i }];
-                crate::smooth::smooth_track(&[[1.0, t], [0.0, 1.0]], a, sm.lag, &mut o.states);
+                for (i, _, o) in group.iter_mut() {
+                    let j = if params.len() == 1 { 0 } else { *i };
+                    let t = params[j].2;
+                    let a = &sm.a[if sm.a.len() == 1 { 0 } else { *i }];
+                    crate::smooth::smooth_track(&[[1.0, t], [0.0, 1.0]], a, sm.lag, &mut o.states);
+                }
             }
         },
     )
@@ -749,6 +936,64 @@ mod tests {
                     rv[k]
                 );
             }
+        }
+    }
+
+    #[test]
+    fn lanes_are_bit_identical_to_single_tracks() {
+        let (nt, n) = (11, 257);
+        let mut z: Vec<f64> = (0..nt * n)
+            .map(|i| ((i * 2654435761usize) % 1000) as f64 * 0.01 + (i % n) as f64)
+            .collect();
+        for i in 0..n {
+            z[3 * n + i] = f64::NAN; // an all-NaN track
+        }
+        for k in [0usize, 5, 6, 100] {
+            z[7 * n + k] = f64::NAN;
+        }
+        let params: Vec<(f64, f64, f64)> = (0..nt)
+            .map(|i| (0.2 + 0.05 * i as f64, 0.05 + 0.01 * i as f64, 0.5))
+            .collect();
+        let meas = Measurements::contiguous(&z, nt, n, 1).unwrap();
+        let mut st = vec![TrackState::default(); nt];
+        let mut out = vec![0.0; 2 * nt * n];
+        filter_ab(
+            &params,
+            Init::TwoPoint,
+            &meas,
+            &mut st,
+            &mut out,
+            None,
+            true,
+            None,
+        )
+        .unwrap();
+        for i in 0..nt {
+            let mi = Measurements::contiguous(&z[i * n..(i + 1) * n], 1, n, 1).unwrap();
+            let mut si = [TrackState::default()];
+            let mut oi = vec![0.0; 2 * n];
+            filter_ab(
+                &params[i..i + 1],
+                Init::TwoPoint,
+                &mi,
+                &mut si,
+                &mut oi,
+                None,
+                false,
+                None,
+            )
+            .unwrap();
+            for k in 0..n {
+                for c in 0..2 {
+                    let a = out[c * nt * n + i * n + k];
+                    let b = oi[c * n + k];
+                    assert!(
+                        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                        "track {i} k {k}"
+                    );
+                }
+            }
+            assert_eq!(si[0].x[..2], st[i].x[..2]);
         }
     }
 
