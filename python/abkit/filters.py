@@ -429,7 +429,8 @@ class FixedGainFilter:
         self._kernel(z3, packed, init_mode, out3, res3, None if threads is None else int(threads), sgain, None if lag is None else int(lag))
         residuals = None
         if res3 is not None:
-            residuals = res3.reshape(np.shape(z)) if isinstance(z, np.ndarray) else res3
+            rshape = shape + ((self.m,) if self.m > 1 else ())
+            residuals = res3.reshape(rshape)
         return FilterResult(o, residuals, FilterState(packed, self.n, single))
 
     def _default_smoother_gain(self) -> np.ndarray:
@@ -717,7 +718,9 @@ class SteadyStateCovariance:
     smoothed : ndarray (n, n) or None
         Steady-state fixed-interval (RTS) smoother covariance with the
         constant backward gain ``A = P Phi^T M^-1`` (paper 001 eq (22));
-        exact when the filter's gain is the Kalman gain of (Q, R).
+        exact when the filter's gain is the Kalman gain of (Q, R). ``None``
+        when no steady state exists (the backward gain is not contracting,
+        e.g. ``Q = 0``, where ``A = Phi^-1``).
     smoother_gain : ndarray (n, n) or None
     """
 
@@ -754,8 +757,11 @@ def _steady_covariance(phi: np.ndarray, h: np.ndarray, k: np.ndarray, q: np.ndar
     smoothed = gain = None
     try:
         gain = p @ phi.T @ np.linalg.inv(m)
-        # P_s = P + A (P_s - M) A^T  <=>  P_s = A P_s A^T + (P - A M A^T)
-        smoothed = _dlyap(gain, p - gain @ m @ gain.T)
+        # P_s = P + A (P_s - M) A^T  <=>  P_s = A P_s A^T + (P - A M A^T);
+        # a steady state exists only if the backward gain is contracting
+        # (it is not, e.g., without process noise: A = Phi^-1).
+        if np.max(np.abs(np.linalg.eigvals(gain))) < 1.0 - 1e-9:
+            smoothed = _dlyap(gain, p - gain @ m @ gain.T)
     except np.linalg.LinAlgError:
         pass
     return SteadyStateCovariance(m, p, smoothed, gain)

@@ -182,13 +182,13 @@ impl<'a, T: IoFloat> Measurements<'a, T> {
         Ok(())
     }
 
-    /// Row `i` as a contiguous slice when samples of a scalar measurement are
-    /// adjacent in memory.
+    /// Row `i` as a contiguous slice (sample-major, `n_samples * m`
+    /// elements) when the track's measurements are adjacent in memory.
     #[inline]
     fn row(&self, i: usize) -> Option<&'a [T]> {
-        if self.m == 1 && self.s_sample == 1 {
+        if self.s_sample == self.m as isize && (self.m == 1 || self.s_comp == 1) {
             let start = (self.base as isize + i as isize * self.s_track) as usize;
-            self.data.get(start..start + self.n_samples)
+            self.data.get(start..start + self.n_samples * self.m)
         } else {
             None
         }
@@ -388,7 +388,8 @@ fn ab_step<const FMA: bool>(c: &AbConst, x: f64, v: f64, z: f64) -> (f64, f64, f
     let xp = madd::<FMA>(c.t, v, x);
     let e = z - xp;
     let w = madd::<FMA>(c.g2, z, v);
-    if e.is_nan() {
+    // Test z, not e: the branch condition stays off the dependency chain.
+    if z.is_nan() {
         (xp, v, e)
     } else {
         (
@@ -695,6 +696,264 @@ pub fn run_batch<T: IoFloat, const N: usize>(
     Ok(())
 }
 
+/// Constants of one general fixed-gain filter in the form used by the
+/// steady-state loop: `x' = A x + K z` (`A = (I - K H) Phi`) for a valid
+/// sample, `x' = Phi x` for a missed one; residual `z - (H Phi) x`.
+#[derive(Debug, Clone, Copy)]
+struct GenConst<const N: usize, const M: usize> {
+    a: [[f64; N]; N],
+    phi: [[f64; N]; N],
+    k: [[f64; M]; N],
+    hphi: [[f64; N]; M],
+}
+
+impl<const N: usize, const M: usize> GenConst<N, M> {
+    fn new(g: &Gains<N, M>) -> Self {
+        let hphi: [[f64; N]; M] = std::array::from_fn(|j| {
+            std::array::from_fn(|c| (0..N).map(|i| g.h[j][i] * g.phi[i][c]).sum())
+        });
+        let a: [[f64; N]; N] = std::array::from_fn(|i| {
+            std::array::from_fn(|c| {
+                g.phi[i][c] - (0..M).map(|j| g.k[i][j] * hphi[j][c]).sum::<f64>()
+            })
+        });
+        GenConst {
+            a,
+            phi: g.phi,
+            k: g.k,
+            hphi,
+        }
+    }
+}
+
+/// One step of the general kernel (see [`GenConst`]).
+#[inline(always)]
+fn gen_step<const N: usize, const M: usize, const FMA: bool>(
+    c: &GenConst<N, M>,
+    x: &[f64; N],
+    z: &[f64; M],
+) -> [f64; N] {
+    if z.iter().all(|v| !v.is_nan()) {
+        std::array::from_fn(|i| {
+            let mut s = c.k[i][0] * z[0];
+            for j in 1..M {
+                s = madd::<FMA>(c.k[i][j], z[j], s);
+            }
+            for j in 0..N {
+                s = madd::<FMA>(c.a[i][j], x[j], s);
+            }
+            s
+        })
+    } else {
+        std::array::from_fn(|i| {
+            let mut s = 0.0;
+            for j in 0..N {
+                s = madd::<FMA>(c.phi[i][j], x[j], s);
+            }
+            s
+        })
+    }
+}
+
+#[inline(always)]
+fn gen_resid<const N: usize, const M: usize, const FMA: bool>(
+    c: &GenConst<N, M>,
+    x: &[f64; N],
+    z: &[f64; M],
+) -> [f64; M] {
+    let valid = z.iter().all(|v| !v.is_nan());
+    std::array::from_fn(|j| {
+        if !valid {
+            return f64::NAN;
+        }
+        let mut s = 0.0;
+        for i in 0..N {
+            s = madd::<FMA>(c.hphi[j][i], x[i], s);
+        }
+        z[j] - s
+    })
+}
+
+/// Steady-state loop of one track of the general kernel over `k0..n`.
+#[inline(always)]
+fn gen_loop<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
+    c: &GenConst<N, M>,
+    st: &mut TrackState,
+    k0: usize,
+    n: usize,
+    z: impl Fn(usize) -> [f64; M],
+    out: &mut TrackOut<'_, T, N>,
+) {
+    let mut x: [f64; N] = std::array::from_fn(|i| st.x[i]);
+    for k in k0..n {
+        let zk = z(k);
+        if let Some(r) = out.resid.as_deref_mut() {
+            let e = gen_resid::<N, M, FMA>(c, &x, &zk);
+            for j in 0..M {
+                r[k * M + j] = T::from_f64(e[j]);
+            }
+        }
+        x = gen_step::<N, M, FMA>(c, &x, &zk);
+        for i in 0..N {
+            out.states[i][k] = T::from_f64(x[i]);
+        }
+    }
+    st.x[..N].copy_from_slice(&x);
+}
+
+/// Lanes of the interleaved general kernel.
+pub const GEN_LANES: usize = 4;
+
+/// General fixed-gain filtering of a group of tracks: start-up per track,
+/// then (for a full group of running tracks with contiguous rows and no
+/// residuals) `GEN_LANES` tracks interleaved; same arithmetic per track in
+/// every path.
+#[inline(always)]
+fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
+    gains: &[Gains<N, M>],
+    consts: &[GenConst<N, M>],
+    init: Init,
+    z: &Measurements<'_, T>,
+    group: &mut [Job<'_, T, N>],
+) {
+    let n = z.n_samples;
+    let pick = |i: usize| if gains.len() == 1 { 0 } else { i };
+    let mut k0 = [0usize; GEN_LANES];
+    for (g, (i, st, o)) in group.iter_mut().enumerate() {
+        let i = *i;
+        let zf = |k: usize| -> [f64; M] { std::array::from_fn(|j| z.at(i, k, j)) };
+        let len = startup_len(init, st, n, &|k| {
+            if zf(k).iter().any(|v| v.is_nan()) {
+                f64::NAN
+            } else {
+                0.0
+            }
+        });
+        if len > 0 {
+            let mut head = TrackOut {
+                states: std::array::from_fn(|_| -> &mut [T] { &mut [] }),
+                resid: None,
+            };
+            for (h, s) in head.states.iter_mut().zip(o.states.iter_mut()) {
+                *h = &mut s[..len];
+            }
+            head.resid = o.resid.as_deref_mut().map(|r| &mut r[..len * M]);
+            run_track(&gains[pick(i)], init, st, len, zf, &mut head);
+        }
+        if g < GEN_LANES {
+            k0[g] = len;
+        }
+    }
+    let lanes_ok = group.len() == GEN_LANES
+        && group
+            .iter()
+            .all(|(i, st, o)| st.phase == 2 && o.resid.is_none() && z.row(*i).is_some());
+    if !lanes_ok {
+        for (idx, (i, st, o)) in group.iter_mut().enumerate() {
+            if st.phase < 2 {
+                continue;
+            }
+            let i = *i;
+            let c = &consts[pick(i)];
+            let start = if idx < GEN_LANES { k0[idx] } else { 0 };
+            match z.row(i) {
+                Some(row) => gen_loop::<T, N, M, FMA>(
+                    c,
+                    st,
+                    start,
+                    n,
+                    |k| std::array::from_fn(|j| row[k * M + j].to_f64()),
+                    o,
+                ),
+                None => gen_loop::<T, N, M, FMA>(
+                    c,
+                    st,
+                    start,
+                    n,
+                    |k| std::array::from_fn(|j| z.at(i, k, j)),
+                    o,
+                ),
+            }
+        }
+        return;
+    }
+    let kmax = k0.iter().copied().max().unwrap_or(0);
+    let mut rows: [&[T]; GEN_LANES] = [&[]; GEN_LANES];
+    let mut cs: [&GenConst<N, M>; GEN_LANES] = [&consts[0]; GEN_LANES];
+    for (l, (i, st, o)) in group.iter_mut().enumerate() {
+        let row = z.row(*i).unwrap_or(&[]);
+        rows[l] = row;
+        cs[l] = &consts[pick(*i)];
+        gen_loop::<T, N, M, FMA>(
+            cs[l],
+            st,
+            k0[l],
+            kmax,
+            |k| std::array::from_fn(|j| row[k * M + j].to_f64()),
+            o,
+        );
+    }
+    let rows = rows.map(|r| &r[..(n * M).min(r.len())]);
+    if rows.iter().any(|r| r.len() != n * M) {
+        return;
+    }
+    let mut xs: [[f64; N]; GEN_LANES] = [[0.0; N]; GEN_LANES];
+    for (l, (_, st, _)) in group.iter().enumerate() {
+        xs[l] = std::array::from_fn(|i| st.x[i]);
+    }
+    for k in kmax..n {
+        for l in 0..GEN_LANES {
+            let zk: [f64; M] = std::array::from_fn(|j| rows[l][k * M + j].to_f64());
+            xs[l] = gen_step::<N, M, FMA>(cs[l], &xs[l], &zk);
+            let o = &mut group[l].2;
+            for i in 0..N {
+                o.states[i][k] = T::from_f64(xs[l][i]);
+            }
+        }
+    }
+    for (l, (_, st, _)) in group.iter_mut().enumerate() {
+        st.x[..N].copy_from_slice(&xs[l]);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+fn gen_group_fma<T: IoFloat, const N: usize, const M: usize>(
+    gains: &[Gains<N, M>],
+    consts: &[GenConst<N, M>],
+    init: Init,
+    z: &Measurements<'_, T>,
+    group: &mut [Job<'_, T, N>],
+) {
+    gen_group::<T, N, M, true>(gains, consts, init, z, group)
+}
+
+fn gen_group_dispatch<T: IoFloat, const N: usize, const M: usize>(
+    gains: &[Gains<N, M>],
+    consts: &[GenConst<N, M>],
+    init: Init,
+    z: &Measurements<'_, T>,
+    group: &mut [Job<'_, T, N>],
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if uses_fma() {
+            // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
+            unsafe { gen_group_fma(gains, consts, init, z, group) };
+            return;
+        }
+        gen_group::<T, N, M, false>(gains, consts, init, z, group)
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        gen_group::<T, N, M, true>(gains, consts, init, z, group)
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        gen_group::<T, N, M, false>(gains, consts, init, z, group)
+    }
+}
+
 /// Optional smoothing after filtering: backward gains `A` (one per parameter
 /// set) and the lag (`None`: fixed interval). See [`crate::smooth`].
 #[derive(Debug, Clone, Copy)]
@@ -729,6 +988,7 @@ pub fn filter_general<T: IoFloat, const N: usize, const M: usize>(
         )));
     }
     z.validate()?;
+    let consts: Vec<GenConst<N, M>> = gains.iter().map(GenConst::new).collect();
     run_batch::<T, N>(
         z.n_tracks,
         z.n_samples,
@@ -737,35 +997,13 @@ pub fn filter_general<T: IoFloat, const N: usize, const M: usize>(
         out,
         resid,
         parallel,
-        1,
+        GEN_LANES,
         |group| {
-            for (i, st, o) in group.iter_mut() {
-                let i = *i;
-                let g = &gains[if gains.len() == 1 { 0 } else { i }];
-                match z.row(i) {
-                    Some(row) => run_track(
-                        g,
-                        init,
-                        st,
-                        z.n_samples,
-                        |k| {
-                            let mut a = [0.0; M];
-                            a[0] = row[k].to_f64();
-                            a
-                        },
-                        o,
-                    ),
-                    None => run_track(
-                        g,
-                        init,
-                        st,
-                        z.n_samples,
-                        |k| std::array::from_fn(|j| z.at(i, k, j)),
-                        o,
-                    ),
-                }
-                if let Some(sm) = &smoother {
-                    let a = &sm.a[if sm.a.len() == 1 { 0 } else { i }];
+            gen_group_dispatch(gains, &consts, init, z, group);
+            if let Some(sm) = &smoother {
+                for (i, _, o) in group.iter_mut() {
+                    let g = &gains[if gains.len() == 1 { 0 } else { *i }];
+                    let a = &sm.a[if sm.a.len() == 1 { 0 } else { *i }];
                     crate::smooth::smooth_track(&g.phi, a, sm.lag, &mut o.states);
                 }
             }
