@@ -195,7 +195,7 @@ impl<'a, T: IoFloat> Measurements<'a, T> {
     }
 
     #[inline(always)]
-    fn at(&self, i: usize, k: usize, j: usize) -> f64 {
+    pub(crate) fn at(&self, i: usize, k: usize, j: usize) -> f64 {
         let off = self.base as isize
             + i as isize * self.s_track
             + k as isize * self.s_sample

@@ -16,6 +16,7 @@ pub mod alphabeta;
 pub mod batch;
 mod error;
 pub mod filter;
+pub mod kalman;
 pub mod smooth;
 
 pub use error::Error;
