@@ -7,13 +7,15 @@ Modules
 -------
 alphabeta
     Alpha-beta design (Kalman and deterministic) and analysis.
+kalman
+    The time-varying Kalman filter recursion (paper 002), batched.
 filters
     Batched filtering: AlphaBetaFilter, AlphaBetaGammaFilter, FixedGainFilter, Tracker.
 plot
     Figures (the design nomograph); needs ``abkit[plot]``.
 """
 
-from . import alphabeta, filters
+from . import alphabeta, filters, kalman
 from ._abkit import __version__
 from .alphabeta import AlphaBeta
 from .filters import (
@@ -28,6 +30,7 @@ from .filters import (
 __all__ = [
     "alphabeta",
     "filters",
+    "kalman",
     "AlphaBeta",
     "AlphaBetaFilter",
     "AlphaBetaGammaFilter",

@@ -14,6 +14,8 @@ __all__ = [
     "alphabeta_from_tracking_index",
     "filter_alphabeta",
     "filter_fixed_gain",
+    "kalman_gain_sequence",
+    "kalman_run",
     "ALPHABETA_FIELDS",
     "STATE_WIDTH",
     "__version__",
@@ -63,4 +65,22 @@ def filter_fixed_gain(
     threads: int | None = None,
     smoother_gain: _F64 | None = None,
     lag: int | None = None,
+) -> None: ...
+def kalman_gain_sequence(
+    n: int, m: int, phi: _F64, h: _F64, q: _F64, r: _F64, p0: _F64, steps: int
+) -> tuple[_F64, _F64, _F64]: ...
+def kalman_run(
+    z: _FArr,
+    n: int,
+    m: int,
+    phi: _F64,
+    h: _F64,
+    q: _F64,
+    r: _F64,
+    x0: _F64,
+    p0: _F64,
+    out: _FArr,
+    p_final: _F64,
+    resid: _FArr | None = None,
+    threads: int | None = None,
 ) -> None: ...

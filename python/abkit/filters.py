@@ -158,6 +158,32 @@ class FilterResult:
         return f"FilterResult(states={self.states.shape} {self.states.dtype}, residuals={'yes' if self.residuals is not None else 'no'})"
 
 
+def prepare_z(z: Any, m: int) -> Tuple[np.ndarray, Tuple[int, ...], bool]:
+    """Validate measurements and view them as (n_tracks, n_samples, m) without copying."""
+    if not isinstance(z, np.ndarray):
+        z = np.asarray(z)
+        if z.dtype.kind in "iub":
+            raise TypeError(f"z must be a float32 or float64 array, got {z.dtype}; convert it with np.asarray(z, float)")
+    if z.dtype not in _ACCEPTED:
+        if z.dtype.kind == "f" and z.dtype.itemsize in (4, 8) and not z.dtype.isnative:
+            raise TypeError(f"z must be float32 or float64 in native byte order, got {z.dtype}; use z.astype(z.dtype.newbyteorder('='))")
+        raise TypeError(f"z must be a float32 or float64 array, got dtype {z.dtype}")
+    if m == 1:
+        if z.ndim == 1:
+            z3, single = z[None, :, None], True
+        elif z.ndim == 2:
+            z3, single = z[:, :, None], False
+        else:
+            raise ValueError(f"z must have shape (n_samples,) or (n_tracks, n_samples) for scalar measurements, got {z.shape}")
+    else:
+        if z.ndim not in (2, 3) or z.shape[-1] != m:
+            raise ValueError(f"z must have shape (n_samples, {m}) or (n_tracks, n_samples, {m}) for this filter (H has {m} rows), got {z.shape}")
+        z3, single = (z[None] if z.ndim == 2 else z), z.ndim == 2
+    if not z3.flags.aligned or any(s % z3.itemsize for s in z3.strides):
+        z3 = np.ascontiguousarray(z3)  # unaligned memory: the one case that copies
+    return z3, z3.shape[:2], single
+
+
 def _as_matrix(name: str, value: Any, shape: Tuple[int, ...]) -> np.ndarray:
     a = as_float_array(name, value)
     if a.shape != shape:
@@ -287,29 +313,7 @@ class FixedGainFilter:
 
     # -- running ---------------------------------------------------------------
     def _prepare_z(self, z: Any) -> Tuple[np.ndarray, Tuple[int, ...], bool]:
-        if not isinstance(z, np.ndarray):
-            z = np.asarray(z)
-            if z.dtype.kind in "iub":
-                raise TypeError(f"z must be a float32 or float64 array, got {z.dtype}; convert it with np.asarray(z, float)")
-        if z.dtype not in _ACCEPTED:
-            if z.dtype.kind == "f" and z.dtype.itemsize in (4, 8) and not z.dtype.isnative:
-                raise TypeError(f"z must be float32 or float64 in native byte order, got {z.dtype}; use z.astype(z.dtype.newbyteorder('='))")
-            raise TypeError(f"z must be a float32 or float64 array, got dtype {z.dtype}")
-        m = self.m
-        if m == 1:
-            if z.ndim == 1:
-                z3, single = z[None, :, None], True
-            elif z.ndim == 2:
-                z3, single = z[:, :, None], False
-            else:
-                raise ValueError(f"z must have shape (n_samples,) or (n_tracks, n_samples) for scalar measurements, got {z.shape}")
-        else:
-            if z.ndim not in (2, 3) or z.shape[-1] != m:
-                raise ValueError(f"z must have shape (n_samples, {m}) or (n_tracks, n_samples, {m}) for this filter (H has {m} rows), got {z.shape}")
-            z3, single = (z[None] if z.ndim == 2 else z), z.ndim == 2
-        if not z3.flags.aligned or any(s % z3.itemsize for s in z3.strides):
-            z3 = np.ascontiguousarray(z3)  # unaligned memory: the one case that copies
-        return z3, z3.shape[:2], single
+        return prepare_z(z, self.m)
 
     def _initial_state(self, init: Any, state: Optional[FilterState], n_tracks: int) -> Tuple[np.ndarray, str]:
         packed = np.zeros((n_tracks, _W))

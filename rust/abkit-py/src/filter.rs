@@ -33,7 +33,7 @@ fn parse_init(init: &str) -> PyResult<Init> {
 }
 
 /// A view of any strides as core `Measurements`.
-fn measurements<'a, T: IoFloat>(v: &ArrayView3<'a, T>) -> Measurements<'a, T> {
+pub(crate) fn measurements<'a, T: IoFloat>(v: &ArrayView3<'a, T>) -> Measurements<'a, T> {
     let (nt, ns, m) = v.dim();
     let s = v.strides();
     if nt == 0 || ns == 0 || m == 0 {
@@ -362,21 +362,5 @@ pub(crate) fn filter_fixed_gain<'py>(
             )
         }};
     }
-    match (n, m) {
-        (1, 1) => go!(1, 1),
-        (2, 1) => go!(2, 1),
-        (3, 1) => go!(3, 1),
-        (4, 1) => go!(4, 1),
-        (5, 1) => go!(5, 1),
-        (6, 1) => go!(6, 1),
-        (1, 2) => go!(1, 2),
-        (2, 2) => go!(2, 2),
-        (3, 2) => go!(3, 2),
-        (4, 2) => go!(4, 2),
-        (5, 2) => go!(5, 2),
-        (6, 2) => go!(6, 2),
-        _ => Err(PyValueError::new_err(format!(
-            "state dimension must be 1..=6 and measurement dimension 1..=2, got n={n}, m={m}"
-        ))),
-    }
+    dispatch!(n, m, go)
 }

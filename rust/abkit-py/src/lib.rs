@@ -7,9 +7,33 @@
 //! argument-level validation live in the Python layer (`python/abkit`).
 //! One file per core module.
 
+/// Expand `$go!(N, M)` for the runtime sizes `n` (1..=6) and `m` (1..=2).
+macro_rules! dispatch {
+    ($n:expr, $m:expr, $go:ident) => {
+        match ($n, $m) {
+            (1, 1) => $go!(1, 1),
+            (2, 1) => $go!(2, 1),
+            (3, 1) => $go!(3, 1),
+            (4, 1) => $go!(4, 1),
+            (5, 1) => $go!(5, 1),
+            (6, 1) => $go!(6, 1),
+            (1, 2) => $go!(1, 2),
+            (2, 2) => $go!(2, 2),
+            (3, 2) => $go!(3, 2),
+            (4, 2) => $go!(4, 2),
+            (5, 2) => $go!(5, 2),
+            (6, 2) => $go!(6, 2),
+            (n, m) => Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "state dimension must be 1..=6 and measurement dimension 1..=2, got n={n}, m={m}"
+            ))),
+        }
+    };
+}
+
 mod alphabeta;
 mod convert;
 mod filter;
+mod kalman;
 
 use pyo3::prelude::*;
 
@@ -23,6 +47,8 @@ mod _abkit {
     };
     #[pymodule_export]
     use super::filter::{filter_alphabeta, filter_fixed_gain};
+    #[pymodule_export]
+    use super::kalman::{kalman_gain_sequence, kalman_run};
     use pyo3::prelude::*;
 
     #[pymodule_init]
