@@ -11,6 +11,14 @@
 //!   any gains (covariances, poles, lag, variance reduction).
 //! - [`batch`]: element-wise evaluation of a scalar solver over arrays,
 //!   in parallel on rayon's global pool.
+//! - [`filter`]: the batched fixed-gain filtering kernels (general `n <= 6`,
+//!   `m <= 2`; alpha-beta specialisation), start-up, missed samples, streaming
+//!   state.
+//! - [`smooth`]: steady-state fixed-interval (RTS) and fixed-lag smoothing.
+//! - [`kalman`]: the time-varying Kalman recursion (paper 002), batched.
+
+// No unwrap/expect outside tests: nothing derived from user data may panic.
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod alphabeta;
 pub mod batch;

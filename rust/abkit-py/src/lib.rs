@@ -7,6 +7,9 @@
 //! argument-level validation live in the Python layer (`python/abkit`).
 //! One file per core module.
 
+// No unwrap/expect outside tests: nothing derived from user data may panic.
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 /// Expand `$go!(N, M)` for the runtime sizes `n` (1..=6) and `m` (1..=2).
 macro_rules! dispatch {
     ($n:expr, $m:expr, $go:ident) => {
