@@ -103,3 +103,21 @@ def test_demo_writes_nomograph(tmp_path: pathlib.Path) -> None:
 def test_demo_help() -> None:
     out = run("demo", "--help")
     assert out.returncode == 0 and "--out" in out.stdout
+
+
+def test_demo_fleet_errors_match_theory() -> None:
+    """The demo's simulated fleet: empirical rms errors within 10 % of the
+    steady-state theory (fixed seed; 5 % missed fixes raise them slightly)."""
+    out = run("demo", "--no-plot", "--tracks", "300", "--samples", "1500", "--seed", "1")
+    assert out.returncode == 0, out.stderr
+    rows = [ln.split() for ln in out.stdout.splitlines() if ln.strip().startswith(("position,", "velocity,"))]
+    assert len(rows) == 4
+    for r in rows:
+        emp, th = float(r[-2]), float(r[-1])
+        assert abs(emp / th - 1) < 0.10, r
+
+
+@pytest.mark.parametrize("args", [["--tracks", "0"], ["--missed", "1.5"], ["--samples", "x"]])
+def test_demo_bad_flags(args: list) -> None:
+    out = run("demo", "--no-plot", *args)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
