@@ -456,11 +456,22 @@ fn ab_lanes<T: IoFloat, const FMA: bool>(
     z: [&[T]; AB_LANES],
     xs: [&mut [T]; AB_LANES],
     vs: [&mut [T]; AB_LANES],
+    ahead: Option<(usize, usize)>,
 ) {
     let z = z.map(|s| &s[..n]);
     let xs = xs.map(|s| &mut s[..n]);
     let vs = vs.map(|s| &mut s[..n]);
+    let line = (64 / std::mem::size_of::<T>()).max(1);
     for k in k0..n {
+        if let Some((dz, dout)) = ahead {
+            if k % line == 0 {
+                for l in 0..AB_LANES {
+                    prefetch(z[l].as_ptr().wrapping_add(dz + k));
+                    prefetch(xs[l].as_ptr().wrapping_add(dout + k));
+                    prefetch(vs[l].as_ptr().wrapping_add(dout + k));
+                }
+            }
+        }
         for l in 0..AB_LANES {
             let (x1, v1, _) = ab_step::<FMA>(&c[l], x[l], v[l], z[l][k].to_f64());
             x[l] = x1;
@@ -470,6 +481,24 @@ fn ab_lanes<T: IoFloat, const FMA: bool>(
         }
     }
 }
+
+/// Hint the CPU to fetch the cache line at `p` (no effect on memory, never
+/// faults, any address allowed).
+#[inline(always)]
+fn prefetch<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is only a hint; it does not access memory
+    // architecturally and cannot fault, whatever the address.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p as *const i8)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
+/// Tracks at most this long get software prefetching of the next group of
+/// tracks (the hardware prefetcher does not ramp up on short rows).
+const PREFETCH_MAX_SAMPLES: usize = 4096;
 
 type Job<'a, T, const N: usize> = (usize, &'a mut TrackState, TrackOut<'a, T, N>);
 
@@ -499,6 +528,45 @@ fn ab_group<T: IoFloat, const FMA: bool>(
             t,
         };
         let zf = |k: usize| z.at(*i, k, 0);
+        // Fast path of the usual start: two valid samples first (same
+        // arithmetic as the general start-up code).
+        if st.phase == 0 && n >= 2 {
+            let (z0, z1) = (zf(0), zf(1));
+            if !z0.is_nan() && !z1.is_nan() {
+                let [s0, s1] = &mut o.states;
+                let len = match init {
+                    Init::TwoPoint => {
+                        st.x[0] = z1;
+                        st.x[1] = (z1 - z0) / (1.0 * t);
+                        s0[0] = T::from_f64(z0);
+                        s1[0] = T::from_f64(f64::NAN);
+                        s0[1] = T::from_f64(st.x[0]);
+                        s1[1] = T::from_f64(st.x[1]);
+                        if let Some(r) = o.resid.as_deref_mut() {
+                            r[0] = T::from_f64(f64::NAN);
+                            r[1] = T::from_f64(f64::NAN);
+                        }
+                        2
+                    }
+                    Init::First => {
+                        st.x[0] = z0;
+                        st.x[1] = 0.0;
+                        s0[0] = T::from_f64(z0);
+                        s1[0] = T::from_f64(0.0);
+                        if let Some(r) = o.resid.as_deref_mut() {
+                            r[0] = T::from_f64(f64::NAN);
+                        }
+                        1
+                    }
+                };
+                st.phase = 2;
+                st.since = 0;
+                if g < AB_LANES {
+                    k0[g] = len;
+                }
+                continue;
+            }
+        }
         let len = startup_len(init, st, n, &zf);
         if len > 0 {
             let [s0, s1] = &mut o.states;
@@ -555,7 +623,9 @@ fn ab_group<T: IoFloat, const FMA: bool>(
         <[&mut [T]; AB_LANES]>::try_from(xs),
         <[&mut [T]; AB_LANES]>::try_from(vs),
     ) {
-        ab_lanes::<T, FMA>(&c, &mut x, &mut v, kmax, n, rows, xs, vs);
+        let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
+            .then(|| (AB_LANES * z.s_track as usize, AB_LANES * n));
+        ab_lanes::<T, FMA>(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead);
     }
     for (l, (_, st, _)) in group.iter_mut().enumerate() {
         st.x[0] = x[l];
@@ -658,13 +728,18 @@ pub fn run_batch<T: IoFloat, const N: usize>(
     let mut resid_rows = resid.map(|r| r.chunks_exact_mut(n_samples * m));
     let mut jobs: Vec<Job<'_, T, N>> = Vec::with_capacity(n_tracks);
     for (i, st) in states.iter_mut().enumerate() {
-        let mut rows: Vec<&mut [T]> = Vec::with_capacity(N);
-        for c in comps.iter_mut() {
-            rows.push(c.next().ok_or_else(|| Error::Shape("output rows".into()))?);
+        let mut missing = false;
+        let states_arr: [&mut [T]; N] =
+            std::array::from_fn(|c| match comps.get_mut(c).and_then(|it| it.next()) {
+                Some(row) => row,
+                None => {
+                    missing = true;
+                    &mut []
+                }
+            });
+        if missing {
+            return Err(Error::Shape("output rows".into()));
         }
-        let states_arr: [&mut [T]; N] = rows
-            .try_into()
-            .map_err(|_| Error::Shape("output components".into()))?;
         let r = match resid_rows.as_mut() {
             Some(it) => Some(
                 it.next()
