@@ -7,12 +7,15 @@ Modules
 -------
 alphabeta
     Alpha-beta design (Kalman and deterministic) and analysis.
+riccati
+    Discrete algebraic Riccati equation (checked, stabilising) and the
+    steady-state Kalman filter.
 plot
     Figures (the design nomograph); needs ``abkit[plot]``.
 """
 
-from . import alphabeta
+from . import alphabeta, riccati
 from ._abkit import __version__
 from .alphabeta import AlphaBeta
 
-__all__ = ["alphabeta", "AlphaBeta", "__version__"]
+__all__ = ["alphabeta", "riccati", "AlphaBeta", "__version__"]

@@ -9,12 +9,16 @@
 //!   (1990): Kalman design from the SNR, deterministic design from damping,
 //!   natural frequency or noise bandwidth, and the steady-state analysis of
 //!   any gains (covariances, poles, lag, variance reduction).
+//! - [`riccati`]: the discrete algebraic Riccati equation (structured
+//!   doubling, with residual and stabilisation checks) and the steady-state
+//!   Kalman filter.
 //! - [`batch`]: element-wise evaluation of a scalar solver over arrays,
 //!   in parallel on rayon's global pool.
 
 pub mod alphabeta;
 pub mod batch;
 mod error;
+pub mod riccati;
 
 pub use error::Error;
 

@@ -9,6 +9,7 @@
 
 mod alphabeta;
 mod convert;
+mod riccati;
 
 use pyo3::prelude::*;
 
@@ -20,6 +21,8 @@ mod _abkit {
         alphabeta_from_natural_frequency, alphabeta_from_noise, alphabeta_from_snr,
         alphabeta_from_tracking_error, alphabeta_from_tracking_index,
     };
+    #[pymodule_export]
+    use super::riccati::{riccati_kalman_steady_state, riccati_solve_dare};
     use pyo3::prelude::*;
 
     #[pymodule_init]
