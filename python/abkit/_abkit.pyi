@@ -14,12 +14,16 @@ __all__ = [
     "alphabeta_from_tracking_index",
     "riccati_kalman_steady_state",
     "riccati_solve_dare",
+    "singer_model",
+    "singer_steady_state",
     "ALPHABETA_FIELDS",
+    "SINGER_ROW_WIDTH",
     "__version__",
 ]
 
 __version__: str
 ALPHABETA_FIELDS: list[str]
+SINGER_ROW_WIDTH: int
 
 _F64 = npt.NDArray[np.float64]
 
@@ -37,3 +41,5 @@ def riccati_solve_dare(
 def riccati_kalman_steady_state(
     f: _F64, h: _F64, q: _F64, r: _F64
 ) -> tuple[_F64, _F64, _F64, _F64, _F64, float]: ...
+def singer_model(T: _F64, tau: _F64, q: _F64) -> _F64: ...
+def singer_steady_state(theta: _F64, qn: _F64, rv: _F64, method: _F64) -> _F64: ...

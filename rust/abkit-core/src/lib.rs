@@ -12,6 +12,9 @@
 //! - [`riccati`]: the discrete algebraic Riccati equation (structured
 //!   doubling, with residual and stabilisation checks) and the steady-state
 //!   Kalman filter.
+//! - [`singer`]: the Singer (ECA) model of Yoon & Hong / Singer (1970) and
+//!   the steady state of its Kalman filter (numeric route).
+//! - [`singer_closed`]: the paper's closed-form Hamiltonian route.
 //! - [`batch`]: element-wise evaluation of a scalar solver over arrays,
 //!   in parallel on rayon's global pool.
 
@@ -19,6 +22,8 @@ pub mod alphabeta;
 pub mod batch;
 mod error;
 pub mod riccati;
+pub mod singer;
+pub mod singer_closed;
 
 pub use error::Error;
 

@@ -257,11 +257,26 @@ pub fn solve_dare(
 ) -> Result<Dare> {
     let (n, m) = validate(a, b, q, r, s)?;
     let q = sym(q.clone());
-    let r = sym(r.clone());
-    let s0 = match s {
+    let r_in = sym(r.clone());
+    let s_in = match s {
         Some(s) => s.clone(),
         None => DMatrix::zeros(n, m),
     };
+    // Equilibrate the input space: with E = diag(1/sqrt(|R_ii|)) (1 where
+    // R_ii = 0), (B E, E R E, S E) has the same solution X, and a badly
+    // scaled but nonsingular R is not mistaken for a singular one.
+    let e = DMatrix::from_diagonal(&nalgebra::DVector::from_fn(m, |i, _| {
+        let d = r_in[(i, i)].abs();
+        if d > 0.0 {
+            1.0 / d.sqrt()
+        } else {
+            1.0
+        }
+    }));
+    let b_in = b;
+    let b = &(b_in * &e);
+    let r = sym(&e * &r_in * &e);
+    let s0 = &s_in * &e;
 
     // Shift X = Y + Z with Y = c I when R is (nearly) singular.
     let c = if rcond_sym(&r) < 1e-10 {
@@ -332,7 +347,7 @@ pub fn solve_dare(
         polish = dh <= 1e-14 * hn;
     }
     let x = if c > 0.0 { sym(hk + &eye * c) } else { hk };
-    let (k, residual, rho) = check_solution(a, b, &q, &r, &s0, &x)?;
+    let (k, residual, rho) = check_solution(a, b_in, &q, &r_in, &s_in, &x)?;
     if rho.is_nan() || rho >= 1.0 - STABILITY_MARGIN {
         return Err(Error::NoSolution(format!(
             "no stabilising solution: closed-loop spectral radius {rho} >= 1 \

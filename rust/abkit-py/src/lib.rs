@@ -10,6 +10,7 @@
 mod alphabeta;
 mod convert;
 mod riccati;
+mod singer;
 
 use pyo3::prelude::*;
 
@@ -23,11 +24,14 @@ mod _abkit {
     };
     #[pymodule_export]
     use super::riccati::{riccati_kalman_steady_state, riccati_solve_dare};
+    #[pymodule_export]
+    use super::singer::{singer_model, singer_steady_state};
     use pyo3::prelude::*;
 
     #[pymodule_init]
     fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.add("ALPHABETA_FIELDS", abkit_core::alphabeta::FIELDS.to_vec())?;
+        m.add("SINGER_ROW_WIDTH", abkit_core::singer::ROW_WIDTH)?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))?;
         Ok(())
     }
