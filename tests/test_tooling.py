@@ -61,6 +61,13 @@ def test_errata_check_script_passes() -> None:
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
 
 
+def test_errata_check_script_001_passes() -> None:
+    """docs/errata_checks_001.py (paper 001, Yoon & Hong) re-derives every erratum and exits 0."""
+    pytest.importorskip("scipy")
+    out = subprocess.run([sys.executable, str(ROOT / "docs" / "errata_checks_001.py")], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+
+
 def test_package_type_checks() -> None:
     """The public Python layer type-checks against the hand-written stub."""
     pytest.importorskip("mypy")

@@ -295,6 +295,19 @@ def steady_state(
 
     Notes
     -----
+    The closed form follows the paper: Vaughan's Hamiltonian ``H_f`` (eq (9),
+    with ``U_3``, ``S_3`` corrected), the coefficients ``a, b, c`` of eq (12)
+    (``b``, ``c`` as printed are wrong; abkit uses sums of principal minors),
+    the cubic (16) for ``X = lambda + 1/lambda`` solved in closed form with
+    eq (15), ``|lambda_i| > 1`` (refined by Newton steps on
+    ``det(lambda I - H_f)``), eigenvectors by a structured null space
+    instead of the garbled eq (17), and ``P = W21 W11^-1`` (eq (18)). Every
+    closed-form result is checked (unit-circle margin, conditioning of
+    ``W11``, ``Im P``, positive definiteness, Riccati residual <= 1e-12);
+    ``"auto"`` falls back to the numeric solver where a check fails --
+    typically ``T/tau >= 100`` or very little process noise (``p2`` below
+    about 1e-4). See the "Paper 001" section of ``docs/errata.md``.
+
     Eq (6) is solved on the normalised model (see the module docstring);
     ``K`` is eq (7), ``P_filt`` eq (8) in Joseph form, ``P_smooth`` the
     Lyapunov equation (22) ``P_s - A P_s A^T = P_filt - A P A^T`` with
@@ -305,9 +318,9 @@ def steady_state(
     Position-only tracking, T = 1 s, tau = 20 s, sigma_m = 1 m/s^2, sigma_pos = 10 m:
 
     >>> from abkit import singer
-    >>> s = singer.steady_state(T=1.0, tau=20.0, sigma_m=1.0, sigma_pos=10.0, method="numeric")
+    >>> s = singer.steady_state(T=1.0, tau=20.0, sigma_m=1.0, sigma_pos=10.0)
     >>> s.method_used
-    'numeric'
+    'closed-form'
     >>> s.K.shape, round(s.alpha, 6), round(s.beta, 6), round(s.gamma, 6)
     ((3, 1), 0.44294, 0.128587, 0.034345)
     >>> s2 = singer.steady_state(1.0, 20.0, 1.0, 10.0, sigma_vel=[1.0, 100.0], method="numeric")
