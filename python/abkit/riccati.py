@@ -107,24 +107,36 @@ class KalmanSteadyState(NamedTuple):
     spectral_radius: float
 
 
-def _dare_args(A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike, S: Optional[ArrayLike]) -> tuple:
-    a = as_matrix("A", A)
+def _square_and_coupling(
+    names: tuple, A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike, b_is_input: bool
+) -> tuple:
+    """Validate (A, B, Q, R) of a DARE (``b_is_input``: B is n x m) or
+    (F, H, Q, R) of a Kalman filter (H is p x n), naming each argument."""
+    na, nb, nq, nr = names
+    a = as_matrix(na, A)
     n = a.shape[0]
-    check_shape("A", a, (n, n))
-    b = as_matrix("B", B)
-    if b.shape[0] != n:
-        raise ValueError(f"B must have {n} rows (A is {n}x{n}), got shape {b.shape}")
-    m = b.shape[1]
-    q = as_matrix("Q", Q)
-    check_shape("Q", q, (n, n))
-    r = as_matrix("R", R)
-    check_shape("R", r, (m, m))
-    check_symmetric("Q", q)
-    check_symmetric("R", r)
+    check_shape(na, a, (n, n))
+    b = as_matrix(nb, B)
+    if b_is_input and b.shape[0] != n:
+        raise ValueError(f"{nb} must have {n} rows ({na} is {n}x{n}), got shape {b.shape}")
+    if not b_is_input and b.shape[1] != n:
+        raise ValueError(f"{nb} must have {n} columns ({na} is {n}x{n}), got shape {b.shape}")
+    m = b.shape[1] if b_is_input else b.shape[0]
+    q = as_matrix(nq, Q)
+    check_shape(nq, q, (n, n))
+    r = as_matrix(nr, R)
+    check_shape(nr, r, (m, m))
+    check_symmetric(nq, q)
+    check_symmetric(nr, r)
+    return a, b, q, r
+
+
+def _dare_args(A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike, S: Optional[ArrayLike]) -> tuple:
+    a, b, q, r = _square_and_coupling(("A", "B", "Q", "R"), A, B, Q, R, True)
     s = None
     if S is not None:
         s = as_matrix("S", S)
-        check_shape("S", s, (n, m))
+        check_shape("S", s, b.shape)
     return a, b, q, r, s
 
 
@@ -241,18 +253,6 @@ def kalman_steady_state(F: ArrayLike, H: ArrayLike, Q: ArrayLike, R: ArrayLike) 
     >>> round(float(ks.P_pred[0, 0]), 12), round(float(ks.K[0, 0]), 12)
     (1.61803398875, 0.61803398875)
     """
-    f = as_matrix("F", F)
-    n = f.shape[0]
-    check_shape("F", f, (n, n))
-    h = as_matrix("H", H)
-    if h.shape[1] != n:
-        raise ValueError(f"H must have {n} columns (F is {n}x{n}), got shape {h.shape}")
-    p = h.shape[0]
-    q = as_matrix("Q", Q)
-    check_shape("Q", q, (n, n))
-    r = as_matrix("R", R)
-    check_shape("R", r, (p, p))
-    check_symmetric("Q", q)
-    check_symmetric("R", r)
+    f, h, q, r = _square_and_coupling(("F", "H", "Q", "R"), F, H, Q, R, False)
     P, K, Kp, Pf, S, rho = _abkit.riccati_kalman_steady_state(f, h, q, r)
     return KalmanSteadyState(P, K, Kp, Pf, S, rho)
