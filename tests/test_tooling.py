@@ -68,6 +68,17 @@ def test_errata_check_script_001_passes() -> None:
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
 
 
+def test_singer_benchmark_runs() -> None:
+    """bench/bench_singer.py runs (tiny sizes) and reports every path."""
+    pytest.importorskip("scipy")
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "bench" / "bench_singer.py"), "3000", "20"], capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr[-3000:]
+    for key in ("abkit auto", "abkit numeric", "scipy loop", "speed-up"):
+        assert key in out.stdout
+
+
 def test_package_type_checks() -> None:
     """The public Python layer type-checks against the hand-written stub."""
     pytest.importorskip("mypy")
