@@ -303,7 +303,7 @@ def steady_state(
     ``det(lambda I - H_f)``), eigenvectors by a structured null space
     instead of the garbled eq (17), and ``P = W21 W11^-1`` (eq (18)). Every
     closed-form result is checked (unit-circle margin, conditioning of
-    ``W11``, ``Im P``, positive definiteness, Riccati residual <= 1e-12);
+    ``W11``, ``Im P``, positive definiteness, Riccati residual <= 1e-13);
     ``"auto"`` falls back to the numeric solver where a check fails --
     typically ``T/tau >= 100`` or very little process noise (``p2`` below
     about 1e-4). See the "Paper 001" section of ``docs/errata.md``.

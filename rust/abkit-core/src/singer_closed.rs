@@ -38,7 +38,7 @@ use nalgebra::{Complex, Matrix3, Matrix6, Vector3};
 type C = Complex<f64>;
 
 /// Largest relative Riccati residual accepted from the closed form.
-pub const CLOSED_FORM_RESIDUAL_TOL: f64 = 1e-12;
+pub const CLOSED_FORM_RESIDUAL_TOL: f64 = 1e-13;
 
 fn fail(msg: impl Into<String>) -> Error {
     Error::NoSolution(format!("closed form rejected: {}", msg.into()))
