@@ -336,3 +336,37 @@ def test_kalman_bad_input_names_argument():
     with pytest.raises(np.linalg.LinAlgError):
         # The unstable mode 2 is not observed.
         kalman_steady_state([[1.0, 0.0], [0.0, 2.0]], [[1.0, 0.0]], np.eye(2), [[1.0]])
+
+
+# --- property tests (hypothesis) ----------------------------------------------
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 6), m=st.integers(1, 3), logc=st.floats(-4, 4))
+def test_property_similarity_and_scaling(seed, n, m, logc):
+    """X is covariant under a change of state coordinates x = T z
+    (A -> T^-1 A T, B -> T^-1 B, Q -> T' Q T, X -> T' X T), scales with
+    (Q, R) -> c (Q, R), and is symmetric PSD with a small residual."""
+    rng = np.random.default_rng(seed)
+    A, B, Q, R = _random_system(rng, n, m)
+    try:
+        X = solve_dare(A, B, Q, R)
+    except np.linalg.LinAlgError:
+        # Only acceptable if scipy's answer is not stabilising either.
+        Xs = scipy.linalg.solve_discrete_are(A, B, Q, R)
+        assert rel_residual(A, B, Q, R, Xs)[1] >= 1 - 1e-6
+        return
+    rel, rho = rel_residual(A, B, Q, R, X)
+    assert rel <= 1e-12 and rho < 1
+    assert np.linalg.eigvalsh(X).min() >= -1e-10 * np.linalg.norm(X)
+    T = rng.normal(size=(n, n)) + 3 * np.eye(n)
+    Ti = np.linalg.inv(T)
+    Xt = solve_dare(Ti @ A @ T, Ti @ B, T.T @ Q @ T, R)
+    want = T.T @ X @ T
+    cond = np.linalg.cond(T) ** 2
+    assert np.linalg.norm(Xt - want) <= 1e-10 * cond * np.linalg.norm(want)
+    c = 10.0**logc
+    assert np.linalg.norm(solve_dare(A, B, c * Q, c * R) - c * X) <= 1e-9 * c * np.linalg.norm(X)
