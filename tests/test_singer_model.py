@@ -99,3 +99,18 @@ def test_broadcasting():
 def test_bad_input(kw, match):
     with pytest.raises(ValueError, match=match):
         singer.model(**kw)
+
+
+def test_huge_T_over_tau_does_not_overflow():
+    # White acceleration limit: Q33 -> sigma_m^2, everything finite.
+    for tau in (1e-5, 1e-100, 1e-300):
+        Phi, Q = singer.model(1.0, tau=tau, sigma_m=2.0)
+        assert np.all(np.isfinite(Q)) and np.all(np.isfinite(Phi))
+        assert Q[2, 2] == pytest.approx(4.0, rel=1e-14)
+        assert Phi[2, 2] == 0.0 and Phi[1, 2] == pytest.approx(tau, rel=1e-14)
+    s = singer.steady_state(1.0, 1e-5, 1.0, 1.0)
+    assert np.all(np.isfinite(s.P_pred)) and s.method_used == "numeric"
+    # tau = 1e-300: the position/velocity noise (~ sigma_m^2 tau T) underflows,
+    # so no stabilising steady state exists at working precision.
+    with pytest.raises(np.linalg.LinAlgError):
+        singer.steady_state(1.0, 1e-300, 1.0, 1.0)

@@ -83,7 +83,8 @@ pub fn phi_k(k: usize, z: f64) -> f64 {
 /// ```
 ///
 /// (exact rewritings of Singer's expressions), beyond it Singer's
-/// expressions themselves, which no longer cancel there.
+/// expressions, which no longer cancel there, divided by `2 theta^k` term
+/// by term so that nothing overflows for huge `theta`.
 pub fn singer_g(theta: f64) -> [f64; 6] {
     let t = theta;
     if t <= 2.0 {
@@ -96,24 +97,20 @@ pub fn singer_g(theta: f64) -> [f64; 6] {
             phi_k(1, -2.0 * t),
         ]
     } else {
+        // Singer's expressions divided by 2 theta^k term by term, so that
+        // nothing overflows for huge theta (where e^-theta = 0).
         let x = (-t).exp();
         let x2 = x * x;
-        let f11 = 1.0 - x2 + 2.0 * t + 2.0 * t * t * t / 3.0 - 2.0 * t * t - 4.0 * t * x;
-        let f12 = x2 + 1.0 - 2.0 * x + 2.0 * t * x - 2.0 * t + t * t;
-        let f13 = 1.0 - x2 - 2.0 * t * x;
-        let f22 = 4.0 * x - 3.0 - x2 + 2.0 * t;
-        let f23 = (1.0 - x) * (1.0 - x);
-        let f33 = 1.0 - x2;
-        // q_ij = tau^k f_ij / 2 and T = theta tau: g = f / (2 theta^k).
-        let p = |f: f64, k: i32| f / (2.0 * t.powi(k));
-        [
-            p(f11, 5),
-            p(f12, 4),
-            p(f13, 3),
-            p(f22, 3),
-            p(f23, 2),
-            p(f33, 1),
-        ]
+        let t2 = t * t;
+        let g11 = (1.0 - x2 - 4.0 * t * x) / (2.0 * t2 * t2 * t) + 1.0 / (t2 * t2) - 1.0 / (t2 * t)
+            + 1.0 / (3.0 * t2);
+        let g12 = (x2 + 1.0 - 2.0 * x + 2.0 * t * x) / (2.0 * t2 * t2) - 1.0 / (t2 * t)
+            + 1.0 / (2.0 * t2);
+        let g13 = (1.0 - x2 - 2.0 * t * x) / (2.0 * t2 * t);
+        let g22 = (4.0 * x - 3.0 - x2) / (2.0 * t2 * t) + 1.0 / t2;
+        let g23 = (1.0 - x) * (1.0 - x) / (2.0 * t2);
+        let g33 = (1.0 - x2) / (2.0 * t);
+        [g11, g12, g13, g22, g23, g33]
     }
 }
 
@@ -138,12 +135,8 @@ pub fn model(t: f64, tau: f64, q: f64) -> Result<(Matrix3<f64>, Matrix3<f64>)> {
     let d = [1.0, t, t * t];
     let phi = Matrix3::from_fn(|i, j| phi_n[(i, j)] * d[j] / d[i]);
     let gm = sym3(g);
-    // Q_ij = q g_ij T^(6-i-j) (1-based i, j) = q g_ij T^5 / (d_i d_j).
-    let t5 = t.powi(5);
-    let qm = Matrix3::from_fn(|i, j| {
-        let scale = t5 / (d[i] * d[j]);
-        q * gm[(i, j)] * scale
-    });
+    // Q_ij = q g_ij T^(6-i-j) (1-based i, j; 0-based: T^(5-i-j)).
+    let qm = Matrix3::from_fn(|i, j| q * gm[(i, j)] * t.powi(5 - (i + j) as i32));
     Ok((phi, qm))
 }
 
