@@ -11,11 +11,17 @@ kalman
     The time-varying Kalman filter recursion (paper 002), batched.
 filters
     Batched filtering: AlphaBetaFilter, AlphaBetaGammaFilter, FixedGainFilter, Tracker.
+riccati
+    Discrete algebraic Riccati equation (checked, stabilising) and the
+    steady-state Kalman filter.
+singer
+    The Singer (exponentially correlated acceleration) model and the steady
+    state of its Kalman filter (Yoon & Hong).
 plot
     Figures (the design nomograph); needs ``abkit[plot]``.
 """
 
-from . import alphabeta, filters, kalman
+from . import alphabeta, filters, kalman, riccati, singer
 from ._abkit import __version__
 from .alphabeta import AlphaBeta
 from .filters import (
@@ -31,6 +37,8 @@ __all__ = [
     "alphabeta",
     "filters",
     "kalman",
+    "riccati",
+    "singer",
     "AlphaBeta",
     "AlphaBetaFilter",
     "AlphaBetaGammaFilter",

@@ -16,7 +16,12 @@ __all__ = [
     "filter_fixed_gain",
     "kalman_gain_sequence",
     "kalman_run",
+    "riccati_kalman_steady_state",
+    "riccati_solve_dare",
+    "singer_model",
+    "singer_steady_state",
     "ALPHABETA_FIELDS",
+    "SINGER_ROW_WIDTH",
     "STATE_WIDTH",
     "__version__",
 ]
@@ -24,6 +29,7 @@ __all__ = [
 __version__: str
 ALPHABETA_FIELDS: list[str]
 STATE_WIDTH: int
+SINGER_ROW_WIDTH: int
 
 _F64 = npt.NDArray[np.float64]
 
@@ -84,3 +90,11 @@ def kalman_run(
     resid: _FArr | None = None,
     threads: int | None = None,
 ) -> None: ...
+def riccati_solve_dare(
+    a: _F64, b: _F64, q: _F64, r: _F64, s: _F64 | None = None
+) -> tuple[_F64, _F64, float, float, int]: ...
+def riccati_kalman_steady_state(
+    f: _F64, h: _F64, q: _F64, r: _F64
+) -> tuple[_F64, _F64, _F64, _F64, _F64, float]: ...
+def singer_model(T: _F64, tau: _F64, q: _F64) -> _F64: ...
+def singer_steady_state(theta: _F64, qn: _F64, rv: _F64, method: _F64) -> _F64: ...

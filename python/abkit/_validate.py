@@ -10,7 +10,15 @@ from typing import Any, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["as_float_array", "broadcast", "check_positive", "check_open_interval"]
+__all__ = [
+    "as_float_array",
+    "as_matrix",
+    "broadcast",
+    "check_positive",
+    "check_open_interval",
+    "check_shape",
+    "check_symmetric",
+]
 
 
 def as_float_array(name: str, value: Any) -> np.ndarray:
@@ -82,3 +90,35 @@ def broadcast(names: Sequence[str], arrays: Sequence[np.ndarray]) -> Tuple[Tuple
         raise ValueError(f"arguments do not broadcast together: {shapes}") from None
     shape = b[0].shape if b else ()
     return shape, [np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in b]
+
+
+def as_matrix(name: str, value: Any) -> np.ndarray:
+    """A real 2-D float64 matrix: scalars become 1x1; other ranks are rejected.
+
+    Raises ``TypeError`` for non-real input, ``ValueError`` (naming ``name``)
+    for the wrong rank, an empty matrix or NaN/Inf entries.
+    """
+    arr = as_float_array(name, value)
+    if arr.ndim == 0:
+        arr = arr.reshape(1, 1)
+    if arr.ndim != 2:
+        raise ValueError(f"{name} must be a 2-D matrix, got an array of shape {arr.shape}")
+    if arr.size == 0:
+        raise ValueError(f"{name} must not be empty (n = 0), got shape {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        raise ValueError(f"{name} must be finite (no NaN or Inf entries), {_where(arr, bad)}")
+    return np.ascontiguousarray(arr)
+
+
+def check_shape(name: str, arr: np.ndarray, shape: Tuple[int, int]) -> None:
+    """Raise ``ValueError`` unless ``arr.shape == shape``."""
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+
+
+def check_symmetric(name: str, arr: np.ndarray, rtol: float = 1e-10) -> None:
+    """Raise ``ValueError`` unless ``arr`` is symmetric to ``rtol`` of its largest entry."""
+    asym = float(np.max(np.abs(arr - arr.T))) if arr.size else 0.0
+    if asym > rtol * float(np.max(np.abs(arr))):
+        raise ValueError(f"{name} must be symmetric, got max |{name} - {name}.T| = {asym:.3g}")

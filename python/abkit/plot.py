@@ -4,6 +4,9 @@ Functions
 ---------
 nomograph
     The alpha-beta design nomograph of Painter et al. (1990), Fig. 4.
+singer_errors
+    Normalised rms prediction errors of the Singer-model filter against
+    p2 = sigma_m T^2 / sigma_pos, Yoon & Hong's Figs. 1-3.
 """
 
 from __future__ import annotations
@@ -13,8 +16,9 @@ from typing import Any, Optional
 import numpy as np
 
 from . import alphabeta as _ab
+from . import singer as _singer
 
-__all__ = ["nomograph"]
+__all__ = ["nomograph", "singer_errors", "singer_tau_over_T"]
 
 
 def _pyplot() -> Any:
@@ -116,3 +120,80 @@ def nomograph(ax: Optional[Any] = None, design: Optional[_ab.AlphaBeta] = None, 
     lines = ax.get_lines()[:1] + ax_bw.get_lines()[:1] + ax_snr.get_lines()[:1]
     ax.legend(lines, [ln.get_label() for ln in lines], loc="upper left")
     return ax
+
+
+def singer_tau_over_T(p2: Any, factor: float = 1.0) -> np.ndarray:
+    """The paper's parametrisation of Figs. 1-3: ``tau/T = factor [0.56 + 3.4 p2^-0.86]^(1/2)``.
+
+    ``factor = 1`` is the solid curves, ``factor = 10`` the dotted ones.
+    """
+    p2 = np.asarray(p2, dtype=float)
+    return factor * np.sqrt(0.56 + 3.4 * p2**-0.86)
+
+
+def singer_errors(
+    axes: Optional[Any] = None,
+    p2: Optional[Any] = None,
+    sigma_vel_ratio: Optional[float] = None,
+    factors: Any = (1.0, 10.0),
+    method: str = "auto",
+) -> Any:
+    r"""Normalised rms prediction errors of the Singer filter (Yoon & Hong, Figs. 1-3).
+
+    For each ``p2 = sigma_m T^2 / sigma_pos`` the correlation time follows the
+    paper's parametrisation ``tau/T = f [0.56 + 3.4 p2^-0.86]^(1/2)`` with
+    ``f = 1`` (solid) and ``f = 10`` (dotted), and the steady state comes from
+    :func:`abkit.singer.steady_state`. Plotted (log-log): ``sqrt(P11)/sigma_pos``,
+    ``sqrt(P22) T/sigma_pos``, ``sqrt(P33) T^2/sigma_pos`` of the prediction
+    covariance ``P_pred``.
+
+    Parameters
+    ----------
+    axes : sequence of three matplotlib Axes, optional
+        New figure with three panels if omitted.
+    p2 : array_like, optional
+        Abscissa values (default ``logspace(-3, 3, 61)``).
+    sigma_vel_ratio : float, optional
+        ``sigma_vel T / sigma_pos`` for position-and-velocity measurements;
+        ``None`` (default) is position only. The transcription of the paper
+        does not state the velocity accuracy used in its figures.
+    factors : sequence of float
+        The factors ``f`` of the parametrisation (the paper: 1 and 10).
+    method : str
+        Passed to :func:`abkit.singer.steady_state`.
+
+    Returns
+    -------
+    list of three matplotlib Axes
+        Position, velocity, acceleration; one line per factor, in order.
+
+    Examples
+    --------
+    >>> import matplotlib
+    >>> matplotlib.use("Agg")
+    >>> from abkit import plot
+    >>> axes = plot.singer_errors(p2=[0.01, 1.0, 100.0])
+    >>> [ax.get_ylabel() for ax in axes]
+    ['sqrt(P11) / sigma_pos', 'sqrt(P22) T / sigma_pos', 'sqrt(P33) T^2 / sigma_pos']
+    """
+    plt = _pyplot()
+    x = np.logspace(-3, 3, 61) if p2 is None else np.asarray(p2, dtype=float).ravel()
+    if axes is None:
+        _, axes = plt.subplots(3, 1, figsize=(6.0, 10.0), constrained_layout=True, sharex=True)
+    axes = list(axes)
+    if len(axes) != 3:
+        raise ValueError(f"axes must be three Axes, got {len(axes)}")
+    styles = ["-", ":", "--", "-."]
+    labels = ["sqrt(P11) / sigma_pos", "sqrt(P22) T / sigma_pos", "sqrt(P33) T^2 / sigma_pos"]
+    for k, f in enumerate(factors):
+        tau = singer_tau_over_T(x, f)
+        s = _singer.steady_state(1.0, tau, x, 1.0, sigma_vel_ratio, method=method)
+        for ax, y in zip(axes, (s.rms_position, s.rms_velocity, s.rms_acceleration)):
+            ax.loglog(x, np.atleast_1d(y), styles[k % 4], color="k", label=f"tau/T = {f:g} [0.56 + 3.4 p2^-0.86]^1/2")
+    for ax, lab, title in zip(axes, labels, ("Fig. 1: position", "Fig. 2: velocity", "Fig. 3: acceleration")):
+        ax.set_ylabel(lab)
+        ax.set_title(f"{title} (normalised rms prediction error)")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(loc="best", fontsize="small")
+    axes[-1].set_xlabel("p2 = sigma_m T^2 / sigma_pos")
+    return axes

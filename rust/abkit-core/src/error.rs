@@ -19,6 +19,10 @@ pub enum Error {
     /// Input arrays have inconsistent lengths.
     #[error("array length mismatch: {0}")]
     Shape(String),
+    /// A well-formed problem has no (stabilising) solution, or none that can
+    /// be computed reliably (maps to `numpy.linalg.LinAlgError`).
+    #[error("{0}")]
+    NoSolution(String),
 }
 
 impl Error {

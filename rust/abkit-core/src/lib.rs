@@ -9,6 +9,12 @@
 //!   (1990): Kalman design from the SNR, deterministic design from damping,
 //!   natural frequency or noise bandwidth, and the steady-state analysis of
 //!   any gains (covariances, poles, lag, variance reduction).
+//! - [`riccati`]: the discrete algebraic Riccati equation (structured
+//!   doubling, with residual and stabilisation checks) and the steady-state
+//!   Kalman filter.
+//! - [`singer`]: the Singer (ECA) model of Yoon & Hong / Singer (1970) and
+//!   the steady state of its Kalman filter (numeric route).
+//! - [`singer_closed`]: the paper's closed-form Hamiltonian route.
 //! - [`batch`]: element-wise evaluation of a scalar solver over arrays,
 //!   in parallel on rayon's global pool.
 //! - [`filter`]: the batched fixed-gain filtering kernels (general `n <= 6`,
@@ -25,6 +31,9 @@ pub mod batch;
 mod error;
 pub mod filter;
 pub mod kalman;
+pub mod riccati;
+pub mod singer;
+pub mod singer_closed;
 pub mod smooth;
 
 pub use error::Error;

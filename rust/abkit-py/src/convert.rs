@@ -3,16 +3,48 @@
 
 use abkit_core::batch::map_rows;
 use abkit_core::Error;
-use numpy::{PyArray2, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
+use nalgebra::DMatrix;
+use numpy::{PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+
+pyo3::import_exception!(numpy.linalg, LinAlgError);
 
 /// The one conversion of core errors into Python exceptions.
 pub(crate) fn to_pyerr((index, err): (usize, Error)) -> PyErr {
     match err {
         Error::Domain { .. } => PyValueError::new_err(format!("{err} (at flat index {index})")),
         Error::Shape(_) => PyValueError::new_err(err.to_string()),
+        Error::NoSolution(_) => LinAlgError::new_err(format!("{err} (at flat index {index})")),
     }
+}
+
+/// Core errors of a single (non-batch) problem.
+pub(crate) fn to_pyerr_single(err: Error) -> PyErr {
+    match err {
+        Error::Domain { .. } | Error::Shape(_) => PyValueError::new_err(err.to_string()),
+        Error::NoSolution(_) => LinAlgError::new_err(err.to_string()),
+    }
+}
+
+/// A 2-D float64 numpy array (any strides) as an owned nalgebra matrix.
+pub(crate) fn to_dmatrix(a: &PyReadonlyArray2<'_, f64>) -> DMatrix<f64> {
+    let v = a.as_array();
+    let (r, c) = v.dim();
+    DMatrix::from_fn(r, c, |i, j| v[[i, j]])
+}
+
+/// An nalgebra matrix as a new C-ordered numpy array.
+pub(crate) fn from_dmatrix<'py>(py: Python<'py>, m: &DMatrix<f64>) -> Bound<'py, PyArray2<f64>> {
+    let out = PyArray2::<f64>::zeros(py, [m.nrows(), m.ncols()], false);
+    {
+        let mut rw = out.readwrite();
+        let mut v = rw.as_array_mut();
+        for ((i, j), x) in v.indexed_iter_mut() {
+            *x = m[(i, j)];
+        }
+    }
+    out
 }
 
 /// Run `f`, turning a Rust panic (a bug in abkit, never expected) into a

@@ -37,6 +37,8 @@ mod alphabeta;
 mod convert;
 mod filter;
 mod kalman;
+mod riccati;
+mod singer;
 
 use pyo3::prelude::*;
 
@@ -52,12 +54,17 @@ mod _abkit {
     use super::filter::{filter_alphabeta, filter_fixed_gain};
     #[pymodule_export]
     use super::kalman::{kalman_gain_sequence, kalman_run};
+    #[pymodule_export]
+    use super::riccati::{riccati_kalman_steady_state, riccati_solve_dare};
+    #[pymodule_export]
+    use super::singer::{singer_model, singer_steady_state};
     use pyo3::prelude::*;
 
     #[pymodule_init]
     fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.add("ALPHABETA_FIELDS", abkit_core::alphabeta::FIELDS.to_vec())?;
         m.add("STATE_WIDTH", super::filter::STATE_WIDTH)?;
+        m.add("SINGER_ROW_WIDTH", abkit_core::singer::ROW_WIDTH)?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))?;
         Ok(())
     }
