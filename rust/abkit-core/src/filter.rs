@@ -976,7 +976,20 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     for (l, (_, st, _)) in group.iter().enumerate() {
         xs[l] = std::array::from_fn(|i| st.x[i]);
     }
+    let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
+        .then(|| (GEN_LANES * z.s_track as usize, GEN_LANES * n));
+    let line = (64 / std::mem::size_of::<T>()).max(1);
     for k in kmax..n {
+        if let Some((dz, dout)) = ahead {
+            if k % line == 0 {
+                for l in 0..GEN_LANES {
+                    prefetch(rows[l].as_ptr().wrapping_add(dz + k * M));
+                    for i in 0..N {
+                        prefetch(group[l].2.states[i].as_ptr().wrapping_add(dout + k));
+                    }
+                }
+            }
+        }
         for l in 0..GEN_LANES {
             let zk: [f64; M] = std::array::from_fn(|j| rows[l][k * M + j].to_f64());
             xs[l] = gen_step::<N, M, FMA>(cs[l], &xs[l], &zk);
