@@ -368,6 +368,46 @@ class FixedGainFilter:
             self._hpinv.reshape(-1), self._t, init, packed, out3, res3, threads, sgain, lag,
         )
 
+    _transient: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = None
+
+    def _default_model(self) -> Tuple[np.ndarray, np.ndarray]:
+        raise ValueError(f"transient='kalman' for {type(self).__name__} needs the noise model: pass Q and R")
+
+    def _set_transient(self, transient: Optional[str], P0: Any, Q: Any, R: Any, x0: Any) -> None:
+        """Configure the exact Kalman start (see ``transient`` in the class docs)."""
+        if transient is None:
+            if any(v is not None for v in (P0, Q, R, x0)):
+                raise ValueError("P0, Q, R and x0 apply only with transient='kalman'")
+            self._transient = None
+            return
+        if transient != "kalman":
+            raise ValueError(f"transient must be None or 'kalman', got {transient!r}")
+        if self.n_params != 1:
+            raise ValueError("transient='kalman' needs one parameter set for all tracks")
+        from . import kalman as _kalman
+
+        if Q is None and R is None:
+            q, r = self._default_model()
+        elif Q is None or R is None:
+            raise ValueError("give both Q and R (or neither, for an alpha-beta filter's Kalman-equivalent model)")
+        else:
+            q, r = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
+        r_scale = float(np.max(np.abs(np.atleast_2d(r))))
+        p0 = np.eye(self.n) * 1e12 * r_scale if P0 is None else P0
+        x = np.zeros(self.n) if x0 is None else x0
+        kf = _kalman.KalmanFilter(self._phi[0], self._h[0], q, r, x0=x, P0=p0)
+        # The Kalman gains must converge to this filter's gains.
+        g = kf.gain_sequence(20000)
+        k_inf = g.K[-1]
+        err = float(np.max(np.abs(k_inf - self._k[0])) / max(1e-300, float(np.max(np.abs(self._k[0])))))
+        if not err < 1e-6:
+            raise ValueError(
+                f"transient='kalman': the filter's gains are not the limiting Kalman gains of the model "
+                f"(relative difference {err:.3g}); pass the Q and R the gains were designed for"
+            )
+        self._transient = (kf.F, kf.Q, kf.R, kf.P0)
+        self._transient_filter = kf
+
     def run(
         self,
         z: Any,
@@ -405,6 +445,16 @@ class FixedGainFilter:
         -------
         FilterResult
 
+        Notes
+        -----
+        A filter made with ``transient="kalman"`` runs the exact
+        time-varying Kalman filter (:mod:`abkit.kalman`) from its prior
+        ``(x0, P0)``: the gain sequence is computed once for all tracks and,
+        once it has converged to the last bit, the limiting gain (this
+        filter's gain) is used, so the optimal transient costs no more than
+        fixed-gain filtering. ``init`` is then not used (the prior replaces
+        the start-up), and ``state=`` streaming is not available.
+
         Raises
         ------
         TypeError
@@ -413,6 +463,16 @@ class FixedGainFilter:
             Wrong shapes, ``out`` of wrong shape/dtype or overlapping ``z``,
             bad ``init``/``state``/``threads``.
         """
+        if self._transient is not None:
+            if state is not None:
+                raise ValueError("transient='kalman' runs whole tracks; streaming with state= is not supported")
+            kres = self._transient_filter.run(z, out=out, return_residuals=return_residuals, threads=threads)
+            z3, (n_tracks, _), single = self._prepare_z(z)
+            packed = np.zeros((n_tracks, _W))
+            last = kres.states[..., -1] if kres.states.shape[-1] else np.zeros((self.n,) + ((n_tracks,) if not single else ()))
+            packed[:, : self.n] = np.asarray(last).reshape(self.n, n_tracks).T
+            packed[:, _NMAX] = 2
+            return FilterResult(kres.states, kres.residuals, FilterState(packed, self.n, single))
         return self._run(z, init, state, out, return_residuals, threads, None, None, 1)
 
     def _run(self, z: Any, init: Any, state: Optional[FilterState], out: Optional[np.ndarray], return_residuals: bool, threads: Optional[int], sgain: Optional[np.ndarray], lag: Optional[int], n_sgain: int) -> FilterResult:
@@ -523,6 +583,16 @@ class AlphaBetaFilter(FixedGainFilter):
     allow_unstable : bool, optional
         Accept gains outside the stable region ``alpha > 0, beta > 0,
         2 alpha + beta < 4``.
+    transient : {None, "kalman"}, optional
+        ``"kalman"``: exact start — run the time-varying Kalman filter from
+        the prior ``(x0, P0)`` until its gain has converged to these gains,
+        then these fixed gains (see ``run``'s Notes). The model is ``(Q, R)``
+        or, by default, the Kalman-equivalent white-acceleration model of
+        these (Kalman-optimal) gains with ``R = 1``, so ``P0`` is then in
+        units of the measurement variance; default ``P0`` is diffuse
+        (``1e12 R``), ``x0`` zero.
+    P0, Q, R, x0 : array_like, optional
+        Prior and model for ``transient="kalman"``.
 
     Examples
     --------
@@ -537,7 +607,19 @@ class AlphaBetaFilter(FixedGainFilter):
 
     _kinematic = True
 
-    def __init__(self, alpha: Any, beta: Any, T: Any, *, allow_unstable: bool = False):
+    def __init__(
+        self,
+        alpha: Any,
+        beta: Any,
+        T: Any,
+        *,
+        allow_unstable: bool = False,
+        transient: Optional[str] = None,
+        P0: Any = None,
+        Q: Any = None,
+        R: Any = None,
+        x0: Any = None,
+    ):
         a, b, t = (as_float_array(n, v) for n, v in (("alpha", alpha), ("beta", beta), ("T", T)))
         for name, v in (("alpha", a), ("beta", b), ("T", t)):
             if v.ndim > 1:
@@ -569,6 +651,20 @@ class AlphaBetaFilter(FixedGainFilter):
         self.alpha = a[0] if P == 1 else a
         self.beta = b[0] if P == 1 else b
         self.T = t[0] if P == 1 else t
+        self._set_transient(transient, P0, Q, R, x0)
+
+    def _default_model(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Kalman-equivalent model (R = 1): the white-acceleration model of
+        paper 000 at the SNR r whose Kalman design has this alpha."""
+        from . import alphabeta as _ab
+
+        if not _ab.analyze(self.alpha, self.beta).kalman_optimal:
+            raise ValueError("transient='kalman' without Q and R needs Kalman-optimal gains (see abkit.alphabeta.analyze)")
+        r = _ab.analyze(self.alpha, self.beta).r
+        t = float(self.T)
+        sigma_w = 2.0 * np.sqrt(r) / (t * t)
+        d = np.array([[t * t / 2.0], [t]])
+        return sigma_w**2 * (d @ d.T), np.eye(1)
 
     @classmethod
     def from_design(cls, design: Any, T: Optional[Any] = None, **kw: Any) -> "AlphaBetaFilter":
@@ -639,7 +735,21 @@ class AlphaBetaGammaFilter(FixedGainFilter):
 
     _kinematic = True
 
-    def __init__(self, alpha: Any, beta: Any, gamma: Any, T: Any, *, convention: str = "standard", allow_unstable: bool = False):
+    def __init__(
+        self,
+        alpha: Any,
+        beta: Any,
+        gamma: Any,
+        T: Any,
+        *,
+        convention: str = "standard",
+        allow_unstable: bool = False,
+        transient: Optional[str] = None,
+        P0: Any = None,
+        Q: Any = None,
+        R: Any = None,
+        x0: Any = None,
+    ):
         if convention not in ABG_CONVENTIONS:
             raise ValueError(f"convention must be one of {sorted(ABG_CONVENTIONS)}, got {convention!r}")
         arrs = [as_float_array(n, v) for n, v in (("alpha", alpha), ("beta", beta), ("gamma", gamma), ("T", T))]
@@ -667,6 +777,7 @@ class AlphaBetaGammaFilter(FixedGainFilter):
         self.beta = b[0] if P == 1 else b
         self.gamma = g[0] if P == 1 else g
         self.T = t[0] if P == 1 else t
+        self._set_transient(transient, P0, Q, R, x0)
 
 
 class Tracker:
