@@ -92,7 +92,9 @@ def test_million_samples_with_missed_detections_stay_bounded():
 
 
 def test_million_samples_chunked_and_threads_bit_identical():
-    """A single 10^6-sample track: random chunking and thread counts change nothing."""
+    """A single 10^6-sample track: thread counts change nothing (bit for bit);
+    random chunking changes the segmentation of the single-long-track split
+    (docs/filtering.md), so chunks agree within 1e-12 of the state's scale."""
     rng = np.random.default_rng(78)
     pos, z = _target(rng, np.float64)
     z[rng.random(N) < 0.05] = np.nan
@@ -106,7 +108,11 @@ def test_million_samples_chunked_and_threads_bit_identical():
         rr = f.run(z[lo:hi], state=st)
         st = rr.state
         parts.append(rr.states)
-    assert np.array_equal(np.concatenate(parts, axis=1), one.states, equal_nan=True)
+    got = np.concatenate(parts, axis=1)
+    assert np.array_equal(np.isnan(got), np.isnan(one.states))
+    pscale0 = np.nanmax(np.abs(one.states[0]))
+    assert np.nanmax(np.abs(got[0] - one.states[0])) <= 1e-12 * pscale0
+    assert np.nanmax(np.abs(got[1] - one.states[1])) <= 1e-12 * pscale0 / T
     # the last samples agree with the reference continued from the engine's own
     # state 1000 samples before the end. Positions are ~2.5e5 and velocities
     # ~25: a last-bit difference in position (e.g. a fused multiply-add) enters

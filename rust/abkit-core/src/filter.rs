@@ -449,8 +449,8 @@ pub const AB_LANES: usize = 8;
 #[inline(always)]
 fn ab_lanes<T: IoFloat, const FMA: bool>(
     c: &[AbConst; AB_LANES],
-    x: &mut [f64; AB_LANES],
-    v: &mut [f64; AB_LANES],
+    x_out: &mut [f64; AB_LANES],
+    v_out: &mut [f64; AB_LANES],
     k0: usize,
     n: usize,
     z: [&[T]; AB_LANES],
@@ -462,6 +462,10 @@ fn ab_lanes<T: IoFloat, const FMA: bool>(
     let xs = xs.map(|s| &mut s[..n]);
     let vs = vs.map(|s| &mut s[..n]);
     let line = (64 / std::mem::size_of::<T>()).max(1);
+    // Work on local copies: the caller's arrays may share a cache line with
+    // another thread's (false sharing when segments run in parallel).
+    let (mut xl, mut vl) = (*x_out, *v_out);
+    let (x, v) = (&mut xl, &mut vl);
     for k in k0..n {
         if let Some((dz, dout)) = ahead {
             if k % line == 0 {
@@ -480,6 +484,45 @@ fn ab_lanes<T: IoFloat, const FMA: bool>(
             vs[l][k] = T::from_f64(v1);
         }
     }
+    *x_out = xl;
+    *v_out = vl;
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+fn ab_lanes_fma<T: IoFloat>(
+    c: &[AbConst; AB_LANES],
+    x: &mut [f64; AB_LANES],
+    v: &mut [f64; AB_LANES],
+    n: usize,
+    z: [&[T]; AB_LANES],
+    xs: [&mut [T]; AB_LANES],
+    vs: [&mut [T]; AB_LANES],
+) {
+    ab_lanes::<T, true>(c, x, v, 0, n, z, xs, vs, None)
+}
+
+/// [`ab_lanes`] from a context that may not have the FMA target feature
+/// (a closure run by rayon): `FMA` is true only when [`uses_fma`] said so.
+fn ab_lanes_entry<T: IoFloat, const FMA: bool>(
+    c: &[AbConst; AB_LANES],
+    x: &mut [f64; AB_LANES],
+    v: &mut [f64; AB_LANES],
+    n: usize,
+    z: [&[T]; AB_LANES],
+    xs: [&mut [T]; AB_LANES],
+    vs: [&mut [T]; AB_LANES],
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if FMA {
+            // SAFETY: FMA = true is only instantiated after `uses_fma()`
+            // confirmed the CPU supports FMA.
+            unsafe { ab_lanes_fma(c, x, v, n, z, xs, vs) };
+            return;
+        }
+    }
+    ab_lanes::<T, FMA>(c, x, v, 0, n, z, xs, vs, None)
 }
 
 /// Hint the CPU to fetch the cache line at `p` (no effect on memory, never
@@ -500,6 +543,176 @@ fn prefetch<T>(p: *const T) {
 /// tracks (the hardware prefetcher does not ramp up on short rows).
 const PREFETCH_MAX_SAMPLES: usize = 4096;
 
+/// Number of segments of a split single track (fixed, so results never
+/// depend on the thread count): two groups of `AB_LANES`.
+pub const SPLIT_SEGMENTS: usize = 2 * AB_LANES;
+/// Shortest steady-state run that is split.
+pub const SPLIT_MIN_SAMPLES: usize = 1 << 16;
+
+/// How a long alpha-beta track is split (see [`ab_split`]).
+#[derive(Debug, Clone, Copy)]
+struct SplitPlan {
+    seg_len: usize,
+}
+
+impl SplitPlan {
+    /// A plan when splitting pays: a long run and a fast-decaying loop
+    /// (the correction pass then touches a small part of each segment).
+    fn new(alpha: f64, beta: f64, len: usize) -> Option<Self> {
+        if len < SPLIT_MIN_SAMPLES || !jury_ok(alpha, beta) {
+            return None;
+        }
+        let rho = ab_spectral_radius(alpha, beta);
+        if rho.is_nan() || rho >= 1.0 {
+            return None;
+        }
+        // Samples until a correction shrinks by 2^-60.
+        let decay = if rho <= 0.0 {
+            1.0
+        } else {
+            (-60.0 * std::f64::consts::LN_2) / rho.ln()
+        };
+        let seg_len = len / SPLIT_SEGMENTS;
+        (decay.is_finite() && 8.0 * decay <= seg_len as f64).then_some(SplitPlan { seg_len })
+    }
+}
+
+fn jury_ok(alpha: f64, beta: f64) -> bool {
+    alpha > 0.0 && beta > 0.0 && 2.0 * alpha + beta < 4.0
+}
+
+/// Spectral radius of the alpha-beta loop, the largest root magnitude of
+/// `z^2 - (2 - alpha - beta) z + (1 - alpha)`.
+fn ab_spectral_radius(alpha: f64, beta: f64) -> f64 {
+    let tr = 2.0 - alpha - beta;
+    let det = 1.0 - alpha;
+    let disc = tr * tr - 4.0 * det;
+    if disc < 0.0 {
+        det.abs().sqrt()
+    } else {
+        let sq = disc.sqrt();
+        ((tr + sq) * 0.5).abs().max(((tr - sq) * 0.5).abs())
+    }
+}
+
+/// Alpha-beta filtering of one long track in segments (the filter is
+/// linear, so a segment started from a guessed state differs from the true
+/// run by the state difference propagated through the loop, which decays).
+///
+/// Pass 1 runs all `SPLIT_SEGMENTS` segments interleaved (and, with
+/// `parallel`, the two lane groups on two threads): segment 0 from the true
+/// state, the others from a guess (position from the sample before the
+/// segment, velocity zero). Pass 2, in order, propagates each segment's
+/// start-state error `delta` through the loop (`A` for an updated sample,
+/// `Phi` for a missed one), adds it to the outputs until it is below 2^-60
+/// of the estimate, and so obtains each segment's true end state. The
+/// result equals the unsplit run to rounding (about 1e-15 relative); the
+/// segmentation depends only on the track length.
+#[inline(always)]
+fn ab_split<T: IoFloat, const FMA: bool>(
+    c: &AbConst,
+    st: &mut TrackState,
+    k0: usize,
+    row: &[T],
+    out: &mut TrackOut<'_, T, 2>,
+    plan: SplitPlan,
+    parallel: bool,
+) {
+    let n = row.len();
+    let ls = plan.seg_len;
+    let body_end = k0 + SPLIT_SEGMENTS * ls;
+    // Starting states: true for segment 0, guessed for the others.
+    let mut x0 = [0.0; SPLIT_SEGMENTS];
+    let mut v0 = [0.0; SPLIT_SEGMENTS];
+    x0[0] = st.x[0];
+    v0[0] = st.x[1];
+    for j in 1..SPLIT_SEGMENTS {
+        let prev = row[k0 + j * ls - 1].to_f64();
+        x0[j] = if prev.is_nan() { 0.0 } else { prev };
+    }
+    let (xs, vs) = {
+        let [a, b] = &mut out.states;
+        (&mut a[k0..body_end], &mut b[k0..body_end])
+    };
+    let zs = &row[k0..body_end];
+    let mut ends_x = [0.0; SPLIT_SEGMENTS];
+    let mut ends_v = [0.0; SPLIT_SEGMENTS];
+    {
+        let mut xc = xs.chunks_exact_mut(ls);
+        let mut vc = vs.chunks_exact_mut(ls);
+        let mut zc = zs.chunks_exact(ls);
+        type Lanes<'s, T> = (
+            [&'s mut [T]; AB_LANES],
+            [&'s mut [T]; AB_LANES],
+            [&'s [T]; AB_LANES],
+        );
+        let mut lane_group = || -> Lanes<'_, T> {
+            (
+                std::array::from_fn(|_| xc.next().unwrap_or_default()),
+                std::array::from_fn(|_| vc.next().unwrap_or_default()),
+                std::array::from_fn(|_| zc.next().unwrap_or_default()),
+            )
+        };
+        let (xa, va, za) = lane_group();
+        let (xb, vb, zb) = lane_group();
+        let cs = [*c; AB_LANES];
+        let mut xa0: [f64; AB_LANES] = std::array::from_fn(|l| x0[l]);
+        let mut va0: [f64; AB_LANES] = std::array::from_fn(|l| v0[l]);
+        let mut xb0: [f64; AB_LANES] = std::array::from_fn(|l| x0[AB_LANES + l]);
+        let mut vb0: [f64; AB_LANES] = std::array::from_fn(|l| v0[AB_LANES + l]);
+        // Closures are separate functions that do not inherit the caller's
+        // target features: enter the FMA code explicitly.
+        let run_a = || ab_lanes_entry::<T, FMA>(&cs, &mut xa0, &mut va0, ls, za, xa, va);
+        let run_b = || ab_lanes_entry::<T, FMA>(&cs, &mut xb0, &mut vb0, ls, zb, xb, vb);
+        if parallel {
+            rayon::join(run_a, run_b);
+        } else {
+            run_a();
+            run_b();
+        }
+        ends_x[..AB_LANES].copy_from_slice(&xa0);
+        ends_x[AB_LANES..].copy_from_slice(&xb0);
+        ends_v[..AB_LANES].copy_from_slice(&va0);
+        ends_v[AB_LANES..].copy_from_slice(&vb0);
+    }
+    // Pass 2: corrections, in order.
+    let (t, oma, g2) = (c.t, c.one_minus_alpha, c.g2);
+    let (mut true_x, mut true_v) = (ends_x[0], ends_v[0]);
+    let tiny = 2f64.powi(-60);
+    for j in 1..SPLIT_SEGMENTS {
+        let (mut dx, mut dv) = (true_x - x0[j], true_v - v0[j]);
+        let a = k0 + j * ls;
+        let mut k = a;
+        while k < a + ls && (dx != 0.0 || dv != 0.0) {
+            // delta' = A delta (updated sample) or Phi delta (missed sample)
+            let dp = madd::<FMA>(t, dv, dx);
+            if row[k].to_f64().is_nan() {
+                dx = dp;
+            } else {
+                dx = oma * dp;
+                dv = madd::<FMA>(-g2, dp, dv);
+            }
+            let [xo, vo] = &mut out.states;
+            let xn = xo[k].to_f64() + dx;
+            let vn = vo[k].to_f64() + dv;
+            xo[k] = T::from_f64(xn);
+            vo[k] = T::from_f64(vn);
+            let scale = xn.abs() + (vn * t).abs();
+            if dx.abs() + (dv * t).abs() <= tiny * scale {
+                dx = 0.0;
+                dv = 0.0;
+            }
+            k += 1;
+        }
+        true_x = ends_x[j] + dx;
+        true_v = ends_v[j] + dv;
+    }
+    st.x[0] = true_x;
+    st.x[1] = true_v;
+    // The few samples after the last full segment.
+    ab_loop::<T, FMA>(c, st, body_end, n, |k| row[k].to_f64(), out);
+}
+
 type Job<'a, T, const N: usize> = (usize, &'a mut TrackState, TrackOut<'a, T, N>);
 
 /// Alpha-beta filtering of a group of tracks (the unit of parallel work).
@@ -509,6 +722,7 @@ fn ab_group<T: IoFloat, const FMA: bool>(
     init: Init,
     z: &Measurements<'_, T>,
     group: &mut [Job<'_, T, 2>],
+    parallel: bool,
 ) {
     let n = z.n_samples;
     let konst = |i: usize| {
@@ -580,6 +794,7 @@ fn ab_group<T: IoFloat, const FMA: bool>(
             k0[g] = len;
         }
     }
+    let group_len = group.len();
     let lanes_ok = lanes_ok
         && group
             .iter()
@@ -589,10 +804,18 @@ fn ab_group<T: IoFloat, const FMA: bool>(
             if st.phase < 2 {
                 continue;
             }
-            let (c, ..) = konst(*i);
+            let (c, a, b, _) = konst(*i);
             let start = if idx < AB_LANES { k0[idx] } else { 0 };
             match z.row(*i) {
-                Some(row) => ab_loop::<T, FMA>(&c, st, start, n, |k| row[k].to_f64(), o),
+                Some(row) => {
+                    if o.resid.is_none() && group_len < AB_LANES {
+                        if let Some(plan) = SplitPlan::new(a, b, n - start) {
+                            ab_split::<T, FMA>(&c, st, start, row, o, plan, parallel);
+                            continue;
+                        }
+                    }
+                    ab_loop::<T, FMA>(&c, st, start, n, |k| row[k].to_f64(), o)
+                }
                 None => ab_loop::<T, FMA>(&c, st, start, n, |k| z.at(*i, k, 0), o),
             }
         }
@@ -640,8 +863,9 @@ fn ab_group_fma<T: IoFloat>(
     init: Init,
     z: &Measurements<'_, T>,
     group: &mut [Job<'_, T, 2>],
+    parallel: bool,
 ) {
-    ab_group::<T, true>(params, init, z, group)
+    ab_group::<T, true>(params, init, z, group, parallel)
 }
 
 fn ab_group_dispatch<T: IoFloat>(
@@ -649,23 +873,24 @@ fn ab_group_dispatch<T: IoFloat>(
     init: Init,
     z: &Measurements<'_, T>,
     group: &mut [Job<'_, T, 2>],
+    parallel: bool,
 ) {
     #[cfg(target_arch = "x86_64")]
     {
         if uses_fma() {
             // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
-            unsafe { ab_group_fma(params, init, z, group) };
+            unsafe { ab_group_fma(params, init, z, group, parallel) };
             return;
         }
-        ab_group::<T, false>(params, init, z, group)
+        ab_group::<T, false>(params, init, z, group, parallel)
     }
     #[cfg(target_arch = "aarch64")]
     {
-        ab_group::<T, true>(params, init, z, group)
+        ab_group::<T, true>(params, init, z, group, parallel)
     }
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     {
-        ab_group::<T, false>(params, init, z, group)
+        ab_group::<T, false>(params, init, z, group, parallel)
     }
 }
 
@@ -1132,7 +1357,7 @@ pub fn filter_ab<T: IoFloat>(
         parallel,
         AB_LANES,
         |group| {
-            ab_group_dispatch(params, init, z, group);
+            ab_group_dispatch(params, init, z, group, parallel);
             if let Some(sm) = &smoother {
                 for (i, _, o) in group.iter_mut() {
                     let j = if params.len() == 1 { 0 } else { *i };
