@@ -8,6 +8,12 @@
 //! Each iteration also resets the per-track start-up state (as a fresh
 //! `run` does).
 //!
+//! Besides criterion's estimate (a mean per iteration), each benchmark
+//! prints the fastest single iteration it saw, as
+//! `min-iteration <group>/<id>: <seconds> s`, comparable with the minimum of
+//! warm runs that the Python side reports (on a busy 2-core machine the mean
+//! is inflated by other load much more than the minimum).
+//!
 //! `ABKIT_BENCH_SCALE=k` divides every workload's sample count by `k` (for a
 //! quick smoke run). Run with
 //! `cargo bench -p abkit-core --bench filter` (add `-- ab_serial` etc. to
@@ -16,9 +22,13 @@
 use abkit_core::filter::{
     filter_ab, filter_general, Gains, Init, IoFloat, Measurements, TrackState,
 };
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{
+    criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Criterion, Throughput,
+};
+use std::cell::Cell;
 use std::hint::black_box;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 const ALPHA: f64 = 0.5;
 const BETA: f64 = 0.2;
@@ -63,13 +73,35 @@ fn measurements<F: IoFloat>(n_tracks: usize, n_samples: usize) -> Vec<F> {
     out
 }
 
+/// Benchmark `f` as `<group>/<id>`: criterion's statistics, plus the
+/// fastest single iteration printed on stdout.
+fn case(g: &mut BenchmarkGroup<'_, WallTime>, group: &str, id: &str, mut f: impl FnMut()) {
+    let min = Cell::new(f64::INFINITY);
+    g.bench_function(BenchmarkId::from_parameter(id), |b| {
+        b.iter_custom(|iters| {
+            let mut total = Duration::ZERO;
+            for _ in 0..iters {
+                let t0 = Instant::now();
+                f();
+                let dt = t0.elapsed();
+                total += dt;
+                min.set(min.get().min(dt.as_secs_f64()));
+            }
+            total
+        })
+    });
+    if min.get().is_finite() {
+        println!("min-iteration {group}/{id}: {:.9} s", min.get());
+    }
+}
+
 fn bench_ab<F: IoFloat>(c: &mut Criterion, dtype: &str, parallel: bool) {
     let name = if parallel {
         format!("ab_parallel/{dtype}")
     } else {
         format!("ab_serial/{dtype}")
     };
-    let mut g = c.benchmark_group(name);
+    let mut g = c.benchmark_group(&name);
     g.sample_size(10)
         .warm_up_time(Duration::from_millis(500))
         .measurement_time(Duration::from_secs(2));
@@ -82,22 +114,20 @@ fn bench_ab<F: IoFloat>(c: &mut Criterion, dtype: &str, parallel: bool) {
         let mut states = vec![TrackState::default(); nt];
         let mut out = vec![F::from_f64(0.0); 2 * nt * ns];
         g.throughput(Throughput::Elements((nt * ns) as u64));
-        g.bench_function(BenchmarkId::from_parameter(&label), |b| {
-            b.iter(|| {
-                states.fill(TrackState::default());
-                filter_ab(
-                    &[(ALPHA, BETA, T)],
-                    Init::TwoPoint,
-                    black_box(&meas),
-                    &mut states,
-                    &mut out,
-                    None,
-                    parallel,
-                    None,
-                )
-                .expect("filter_ab");
-                black_box(&out);
-            })
+        case(&mut g, &name, &label, || {
+            states.fill(TrackState::default());
+            filter_ab(
+                &[(ALPHA, BETA, T)],
+                Init::TwoPoint,
+                black_box(&meas),
+                &mut states,
+                &mut out,
+                None,
+                parallel,
+                None,
+            )
+            .expect("filter_ab");
+            black_box(&out);
         });
     }
     g.finish();
@@ -115,7 +145,8 @@ fn abg_gains() -> Gains<3, 1> {
 }
 
 fn bench_general3<F: IoFloat>(c: &mut Criterion, dtype: &str) {
-    let mut g = c.benchmark_group(format!("general3_serial/{dtype}"));
+    let name = format!("general3_serial/{dtype}");
+    let mut g = c.benchmark_group(&name);
     g.sample_size(10)
         .warm_up_time(Duration::from_millis(500))
         .measurement_time(Duration::from_secs(2));
@@ -126,22 +157,20 @@ fn bench_general3<F: IoFloat>(c: &mut Criterion, dtype: &str) {
         let mut states = vec![TrackState::default(); nt];
         let mut out = vec![F::from_f64(0.0); 3 * nt * ns];
         g.throughput(Throughput::Elements((nt * ns) as u64));
-        g.bench_function(BenchmarkId::from_parameter(&label), |b| {
-            b.iter(|| {
-                states.fill(TrackState::default());
-                filter_general(
-                    &gains,
-                    Init::TwoPoint,
-                    black_box(&meas),
-                    &mut states,
-                    &mut out,
-                    None,
-                    false,
-                    None,
-                )
-                .expect("filter_general");
-                black_box(&out);
-            })
+        case(&mut g, &name, &label, || {
+            states.fill(TrackState::default());
+            filter_general(
+                &gains,
+                Init::TwoPoint,
+                black_box(&meas),
+                &mut states,
+                &mut out,
+                None,
+                false,
+                None,
+            )
+            .expect("filter_general");
+            black_box(&out);
         });
     }
     g.finish();
@@ -149,7 +178,8 @@ fn bench_general3<F: IoFloat>(c: &mut Criterion, dtype: &str) {
 
 /// Per-track overhead: 100,000 tracks of 2 samples (start-up only) and of 10.
 fn bench_overhead(c: &mut Criterion) {
-    let mut g = c.benchmark_group("overhead/f64");
+    let name = "overhead/f64";
+    let mut g = c.benchmark_group(name);
     g.sample_size(10)
         .warm_up_time(Duration::from_millis(500))
         .measurement_time(Duration::from_secs(1));
@@ -159,22 +189,20 @@ fn bench_overhead(c: &mut Criterion) {
         let mut states = vec![TrackState::default(); nt];
         let mut out = vec![0.0; 2 * nt * ns];
         g.throughput(Throughput::Elements((nt * ns) as u64));
-        g.bench_function(BenchmarkId::from_parameter(format!("{nt}x{ns}")), |b| {
-            b.iter(|| {
-                states.fill(TrackState::default());
-                filter_ab(
-                    &[(ALPHA, BETA, T)],
-                    Init::TwoPoint,
-                    black_box(&meas),
-                    &mut states,
-                    &mut out,
-                    None,
-                    false,
-                    None,
-                )
-                .expect("filter_ab");
-                black_box(&out);
-            })
+        case(&mut g, name, &format!("{nt}x{ns}"), || {
+            states.fill(TrackState::default());
+            filter_ab(
+                &[(ALPHA, BETA, T)],
+                Init::TwoPoint,
+                black_box(&meas),
+                &mut states,
+                &mut out,
+                None,
+                false,
+                None,
+            )
+            .expect("filter_ab");
+            black_box(&out);
         });
     }
     g.finish();

@@ -65,26 +65,54 @@ impl IoFloat for f32 {
     }
 }
 
-/// Per-track filter state carried between calls (streaming).
+/// `f64`s in a [`TrackState`]: the state, the phase and the gap counter.
+pub const STATE_WIDTH: usize = MAX_STATES + 2;
+
+/// Per-track filter state carried between calls (streaming). `repr(C)`:
+/// exactly [`STATE_WIDTH`] `f64`s, so a `(n_tracks, STATE_WIDTH)` `f64`
+/// array is a `[TrackState]` (see [`states_from_f64`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
 pub struct TrackState {
     /// State estimate (first `n` entries used).
     pub x: [f64; MAX_STATES],
     /// 0: no valid sample yet; 1: one valid sample held (two-point start);
-    /// 2: running.
-    pub phase: u8,
+    /// 2: running. (Stored as `f64` so that a state is exactly
+    /// [`STATE_WIDTH`] `f64`s, the layout of the Python `FilterState`.)
+    pub phase: f64,
     /// In phase 1, samples since the held valid sample.
-    pub since: u64,
+    pub since: f64,
 }
 
 impl Default for TrackState {
     fn default() -> Self {
         TrackState {
             x: [0.0; MAX_STATES],
-            phase: 0,
-            since: 0,
+            phase: 0.0,
+            since: 0.0,
         }
     }
+}
+
+const _: () = assert!(
+    std::mem::size_of::<TrackState>() == STATE_WIDTH * std::mem::size_of::<f64>()
+        && std::mem::align_of::<TrackState>() == std::mem::align_of::<f64>()
+);
+
+/// View a `(n_tracks, STATE_WIDTH)` `f64` buffer as per-track states, in
+/// place (no copy). Errors if the length is not a multiple of `STATE_WIDTH`.
+pub fn states_from_f64(packed: &mut [f64]) -> Result<&mut [TrackState]> {
+    if packed.len() % STATE_WIDTH != 0 {
+        return Err(Error::Shape(format!(
+            "state buffer of {} f64 is not a multiple of {STATE_WIDTH}",
+            packed.len()
+        )));
+    }
+    let n = packed.len() / STATE_WIDTH;
+    // SAFETY: TrackState is repr(C) and made of exactly STATE_WIDTH f64
+    // fields (size and alignment asserted above), every bit pattern is a
+    // valid f64, and the returned slice reborrows `packed` exclusively.
+    Ok(unsafe { std::slice::from_raw_parts_mut(packed.as_mut_ptr().cast::<TrackState>(), n) })
 }
 
 /// How a track starts.
@@ -228,7 +256,7 @@ pub fn run_track<T: IoFloat, const N: usize, const M: usize>(
     let mut x: [f64; N] = std::array::from_fn(|i| st.x[i]);
     let mut k0 = 0;
     // Start-up: until the track is running.
-    while st.phase < 2 && k0 < n {
+    while st.phase < 2.0 && k0 < n {
         let zk = z(k0);
         let valid = zk.iter().all(|v| !v.is_nan());
         if let Some(r) = out.resid.as_deref_mut() {
@@ -236,7 +264,7 @@ pub fn run_track<T: IoFloat, const N: usize, const M: usize>(
                 r[k0 * M + j] = nan;
             }
         }
-        match (st.phase, valid) {
+        match (st.phase as u8, valid) {
             (0, false) => {
                 for c in 0..N {
                     out.states[c][k0] = nan;
@@ -247,13 +275,13 @@ pub fn run_track<T: IoFloat, const N: usize, const M: usize>(
                     *xi = (0..M).map(|j| g.h_pinv[i][j] * zk[j]).sum();
                 }
                 if init == Init::First {
-                    st.phase = 2;
+                    st.phase = 2.0;
                     for c in 0..N {
                         out.states[c][k0] = T::from_f64(x[c]);
                     }
                 } else {
-                    st.phase = 1;
-                    st.since = 0;
+                    st.phase = 1.0;
+                    st.since = 0.0;
                     out.states[0][k0] = T::from_f64(x[0]);
                     for c in 1..N {
                         out.states[c][k0] = nan;
@@ -262,7 +290,7 @@ pub fn run_track<T: IoFloat, const N: usize, const M: usize>(
             }
             (_, false) => {
                 // phase 1, missed sample: hold the first position.
-                st.since += 1;
+                st.since += 1.0;
                 out.states[0][k0] = T::from_f64(x[0]);
                 for c in 1..N {
                     out.states[c][k0] = nan;
@@ -270,7 +298,7 @@ pub fn run_track<T: IoFloat, const N: usize, const M: usize>(
             }
             (_, true) => {
                 // phase 1, second valid sample: two-point start.
-                let gap = (st.since + 1) as f64;
+                let gap = st.since + 1.0;
                 let p1 = x[0];
                 let p2 = zk[0];
                 x = [0.0; N];
@@ -278,8 +306,8 @@ pub fn run_track<T: IoFloat, const N: usize, const M: usize>(
                 if N > 1 {
                     x[1] = (p2 - p1) / (gap * g.t);
                 }
-                st.phase = 2;
-                st.since = 0;
+                st.phase = 2.0;
+                st.since = 0.0;
                 for c in 0..N {
                     out.states[c][k0] = T::from_f64(x[c]);
                 }
@@ -744,7 +772,7 @@ fn ab_group<T: IoFloat, const FMA: bool>(
         let zf = |k: usize| z.at(*i, k, 0);
         // Fast path of the usual start: two valid samples first (same
         // arithmetic as the general start-up code).
-        if st.phase == 0 && n >= 2 {
+        if st.phase == 0.0 && n >= 2 {
             let (z0, z1) = (zf(0), zf(1));
             if !z0.is_nan() && !z1.is_nan() {
                 let [s0, s1] = &mut o.states;
@@ -773,8 +801,8 @@ fn ab_group<T: IoFloat, const FMA: bool>(
                         1
                     }
                 };
-                st.phase = 2;
-                st.since = 0;
+                st.phase = 2.0;
+                st.since = 0.0;
                 if g < AB_LANES {
                     k0[g] = len;
                 }
@@ -798,10 +826,10 @@ fn ab_group<T: IoFloat, const FMA: bool>(
     let lanes_ok = lanes_ok
         && group
             .iter()
-            .all(|(i, st, o)| st.phase == 2 && o.resid.is_none() && z.row(*i).is_some());
+            .all(|(i, st, o)| st.phase == 2.0 && o.resid.is_none() && z.row(*i).is_some());
     if !lanes_ok {
         for (idx, (i, st, o)) in group.iter_mut().enumerate() {
-            if st.phase < 2 {
+            if st.phase < 2.0 {
                 continue;
             }
             let (c, a, b, _) = konst(*i);
@@ -899,12 +927,12 @@ fn ab_group_dispatch<T: IoFloat>(
 fn startup_len(init: Init, st: &TrackState, n: usize, z: &impl Fn(usize) -> f64) -> usize {
     let mut phase = st.phase;
     let mut k = 0;
-    while phase < 2 && k < n {
+    while phase < 2.0 && k < n {
         if !z(k).is_nan() {
-            phase = if phase == 0 && init == Init::TwoPoint {
-                1
+            phase = if phase == 0.0 && init == Init::TwoPoint {
+                1.0
             } else {
-                2
+                2.0
             };
         }
         k += 1;
@@ -951,46 +979,56 @@ pub fn run_batch<T: IoFloat, const N: usize>(
         .map(|c| c.chunks_exact_mut(n_samples))
         .collect();
     let mut resid_rows = resid.map(|r| r.chunks_exact_mut(n_samples * m));
-    let mut jobs: Vec<Job<'_, T, N>> = Vec::with_capacity(n_tracks);
-    for (i, st) in states.iter_mut().enumerate() {
-        let mut missing = false;
-        let states_arr: [&mut [T]; N] =
-            std::array::from_fn(|c| match comps.get_mut(c).and_then(|it| it.next()) {
-                Some(row) => row,
-                None => {
-                    missing = true;
-                    &mut []
-                }
-            });
-        if missing {
-            return Err(Error::Shape("output rows".into()));
-        }
-        let r = match resid_rows.as_mut() {
-            Some(it) => Some(
-                it.next()
-                    .ok_or_else(|| Error::Shape("residual rows".into()))?,
-            ),
-            None => None,
-        };
-        jobs.push((
-            i,
-            st,
-            TrackOut {
-                states: states_arr,
-                resid: r,
-            },
-        ));
-    }
     let gs = group_size.max(1);
-    if parallel && n_tracks > gs {
-        // Enough groups per task that scheduling overhead stays small.
-        let min_groups = 1.max(65_536 / (gs * n_samples).max(1));
-        jobs.par_chunks_mut(gs)
-            .with_min_len(min_groups)
-            .for_each(&group);
-    } else {
-        for g in jobs.chunks_mut(gs) {
-            group(g);
+    // Tracks are handed out in blocks, so the per-track bookkeeping stays
+    // bounded (a few hundred KiB) however many tracks there are.
+    let block = gs * (16_384 / gs).max(1);
+    let mut jobs: Vec<Job<'_, T, N>> = Vec::with_capacity(block.min(n_tracks));
+    let mut st_iter = states.iter_mut().enumerate();
+    loop {
+        jobs.clear();
+        for (i, st) in st_iter.by_ref().take(block) {
+            let mut missing = false;
+            let states_arr: [&mut [T]; N] =
+                std::array::from_fn(|c| match comps.get_mut(c).and_then(|it| it.next()) {
+                    Some(row) => row,
+                    None => {
+                        missing = true;
+                        &mut []
+                    }
+                });
+            if missing {
+                return Err(Error::Shape("output rows".into()));
+            }
+            let r = match resid_rows.as_mut() {
+                Some(it) => Some(
+                    it.next()
+                        .ok_or_else(|| Error::Shape("residual rows".into()))?,
+                ),
+                None => None,
+            };
+            jobs.push((
+                i,
+                st,
+                TrackOut {
+                    states: states_arr,
+                    resid: r,
+                },
+            ));
+        }
+        if jobs.is_empty() {
+            break;
+        }
+        if parallel && jobs.len() > gs {
+            // Enough groups per task that scheduling overhead stays small.
+            let min_groups = 1.max(65_536 / (gs * n_samples).max(1));
+            jobs.par_chunks_mut(gs)
+                .with_min_len(min_groups)
+                .for_each(&group);
+        } else {
+            for g in jobs.chunks_mut(gs) {
+                group(g);
+            }
         }
     }
     Ok(())
@@ -1147,10 +1185,10 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     let lanes_ok = group.len() == GEN_LANES
         && group
             .iter()
-            .all(|(i, st, o)| st.phase == 2 && o.resid.is_none() && z.row(*i).is_some());
+            .all(|(i, st, o)| st.phase == 2.0 && o.resid.is_none() && z.row(*i).is_some());
     if !lanes_ok {
         for (idx, (i, st, o)) in group.iter_mut().enumerate() {
-            if st.phase < 2 {
+            if st.phase < 2.0 {
                 continue;
             }
             let i = *i;

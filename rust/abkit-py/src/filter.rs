@@ -7,7 +7,8 @@
 
 use crate::convert::{guard, to_pyerr};
 use abkit_core::filter::{
-    filter_ab, filter_general, Gains, Init, IoFloat, Measurements, Smoother, TrackState, MAX_STATES,
+    filter_ab, filter_general, states_from_f64, Gains, Init, IoFloat, Measurements, Smoother,
+    TrackState,
 };
 use numpy::ndarray::ArrayView3;
 use numpy::{
@@ -19,8 +20,7 @@ use pyo3::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
-/// Width of a packed state row: `MAX_STATES` state entries, phase, since.
-pub(crate) const STATE_WIDTH: usize = MAX_STATES + 2;
+pub(crate) use abkit_core::filter::STATE_WIDTH;
 
 fn parse_init(init: &str) -> PyResult<Init> {
     match init {
@@ -68,29 +68,6 @@ pub(crate) fn measurements<'a, T: IoFloat>(v: &ArrayView3<'a, T>) -> Measurement
         n_tracks: nt,
         n_samples: ns,
         m,
-    }
-}
-
-fn unpack_states(packed: &[f64]) -> Vec<TrackState> {
-    packed
-        .chunks_exact(STATE_WIDTH)
-        .map(|r| {
-            let mut x = [0.0; MAX_STATES];
-            x.copy_from_slice(&r[..MAX_STATES]);
-            TrackState {
-                x,
-                phase: r[MAX_STATES] as u8,
-                since: r[MAX_STATES + 1] as u64,
-            }
-        })
-        .collect()
-}
-
-fn pack_states(states: &[TrackState], packed: &mut [f64]) {
-    for (st, r) in states.iter().zip(packed.chunks_exact_mut(STATE_WIDTH)) {
-        r[..MAX_STATES].copy_from_slice(&st.x);
-        r[MAX_STATES] = st.phase as f64;
-        r[MAX_STATES + 1] = st.since as f64;
     }
 }
 
@@ -161,13 +138,10 @@ fn run_typed<'py, T: IoFloat + Element>(
             "state has the wrong number of tracks",
         ));
     }
-    let mut states = unpack_states(packed);
-    let res = py.detach(|| {
-        guard(|| with_threads(threads, |par| run(&meas, &mut states, out, resid, par)))
-    })??;
-    res.map_err(|e| to_pyerr((0, e)))?;
-    pack_states(&states, packed);
-    Ok(())
+    let states = states_from_f64(packed).map_err(|e| to_pyerr((0, e)))?;
+    let res =
+        py.detach(|| guard(|| with_threads(threads, |par| run(&meas, states, out, resid, par))))??;
+    res.map_err(|e| to_pyerr((0, e)))
 }
 
 fn dispatch_dtype<'py>(
