@@ -1,0 +1,240 @@
+//! Unit tests of `filter` (a child module of it, so private items are in reach).
+
+use super::*;
+
+fn reference_ab(alpha: f64, beta: f64, t: f64, z: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    // Plain two-point alpha-beta, written independently.
+    let n = z.len();
+    let (mut xs, mut vs) = (vec![f64::NAN; n], vec![f64::NAN; n]);
+    let valid: Vec<usize> = (0..n).filter(|&k| !z[k].is_nan()).collect();
+    if valid.is_empty() {
+        return (xs, vs);
+    }
+    let k1 = valid[0];
+    for k in k1..n {
+        xs[k] = z[k1];
+    }
+    if valid.len() < 2 {
+        return (xs, vs);
+    }
+    let k2 = valid[1];
+    let (mut x, mut v) = (z[k2], (z[k2] - z[k1]) / ((k2 - k1) as f64 * t));
+    xs[k2] = x;
+    vs[k2] = v;
+    for k in k2 + 1..n {
+        let xp = x + t * v;
+        if z[k].is_nan() {
+            x = xp;
+        } else {
+            let e = z[k] - xp;
+            x = xp + alpha * e;
+            v += beta / t * e;
+        }
+        xs[k] = x;
+        vs[k] = v;
+    }
+    (xs, vs)
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-12 * (1.0 + b.abs())
+}
+
+#[test]
+fn ab_matches_reference_with_nans_and_chunks() {
+    let n = 500;
+    let mut z: Vec<f64> = (0..n)
+        .map(|k| 0.3 * k as f64 + ((k * 7919) % 13) as f64 * 0.1)
+        .collect();
+    for k in [0usize, 3, 4, 100, 101, 102, 499] {
+        z[k] = f64::NAN;
+    }
+    let (a, b, t) = (0.5, 0.2, 0.1);
+    let (rx, rv) = reference_ab(a, b, t, &z);
+    for split in [n, 1, 2, 3, 250] {
+        let mut st = [TrackState::default()];
+        let mut out = vec![0.0; 2 * n];
+        {
+            let (o1, o2) = out.split_at_mut(n);
+            let meas1 = Measurements::contiguous(&z[..split], 1, split, 1).unwrap();
+            let mut buf = vec![0.0; 2 * split];
+            filter_ab(
+                &[(a, b, t)],
+                Init::TwoPoint,
+                &meas1,
+                &mut st,
+                &mut buf,
+                None,
+                false,
+                None,
+            )
+            .unwrap();
+            o1[..split].copy_from_slice(&buf[..split]);
+            o2[..split].copy_from_slice(&buf[split..]);
+            if split < n {
+                let rest = n - split;
+                let meas2 = Measurements::contiguous(&z[split..], 1, rest, 1).unwrap();
+                let mut buf = vec![0.0; 2 * rest];
+                filter_ab(
+                    &[(a, b, t)],
+                    Init::TwoPoint,
+                    &meas2,
+                    &mut st,
+                    &mut buf,
+                    None,
+                    false,
+                    None,
+                )
+                .unwrap();
+                o1[split..].copy_from_slice(&buf[..rest]);
+                o2[split..].copy_from_slice(&buf[rest..]);
+            }
+        }
+        for k in 0..n {
+            assert!(
+                close(out[k], rx[k]),
+                "split {split} x[{k}] {} vs {}",
+                out[k],
+                rx[k]
+            );
+            assert!(
+                close(out[n + k], rv[k]),
+                "split {split} v[{k}] {} vs {}",
+                out[n + k],
+                rv[k]
+            );
+        }
+    }
+}
+
+#[test]
+fn lanes_are_bit_identical_to_single_tracks() {
+    let (nt, n) = (11, 257);
+    let mut z: Vec<f64> = (0..nt * n)
+        .map(|i| ((i * 2654435761usize) % 1000) as f64 * 0.01 + (i % n) as f64)
+        .collect();
+    for i in 0..n {
+        z[3 * n + i] = f64::NAN; // an all-NaN track
+    }
+    for k in [0usize, 5, 6, 100] {
+        z[7 * n + k] = f64::NAN;
+    }
+    let params: Vec<(f64, f64, f64)> = (0..nt)
+        .map(|i| (0.2 + 0.05 * i as f64, 0.05 + 0.01 * i as f64, 0.5))
+        .collect();
+    let meas = Measurements::contiguous(&z, nt, n, 1).unwrap();
+    let mut st = vec![TrackState::default(); nt];
+    let mut out = vec![0.0; 2 * nt * n];
+    filter_ab(
+        &params,
+        Init::TwoPoint,
+        &meas,
+        &mut st,
+        &mut out,
+        None,
+        true,
+        None,
+    )
+    .unwrap();
+    for i in 0..nt {
+        let mi = Measurements::contiguous(&z[i * n..(i + 1) * n], 1, n, 1).unwrap();
+        let mut si = [TrackState::default()];
+        let mut oi = vec![0.0; 2 * n];
+        filter_ab(
+            &params[i..i + 1],
+            Init::TwoPoint,
+            &mi,
+            &mut si,
+            &mut oi,
+            None,
+            false,
+            None,
+        )
+        .unwrap();
+        for k in 0..n {
+            for c in 0..2 {
+                let a = out[c * nt * n + i * n + k];
+                let b = oi[c * n + k];
+                assert!(
+                    a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                    "track {i} k {k}"
+                );
+            }
+        }
+        assert_eq!(si[0].x[..2], st[i].x[..2]);
+    }
+}
+
+#[test]
+fn general_kernel_equals_ab_kernel() {
+    let n = 300;
+    let z: Vec<f64> = (0..n).map(|k| (k as f64 * 0.37).sin() * 10.0).collect();
+    let (a, b, t) = (0.4, 0.1, 0.5);
+    let g = Gains::<2, 1> {
+        phi: [[1.0, t], [0.0, 1.0]],
+        h: [[1.0, 0.0]],
+        k: [[a], [b / t]],
+        h_pinv: [[1.0], [0.0]],
+        t,
+    };
+    let meas = Measurements::contiguous(&z, 1, n, 1).unwrap();
+    let mut s1 = [TrackState::default()];
+    let mut s2 = [TrackState::default()];
+    let mut o1 = vec![0.0; 2 * n];
+    let mut o2 = vec![0.0; 2 * n];
+    filter_ab(
+        &[(a, b, t)],
+        Init::First,
+        &meas,
+        &mut s1,
+        &mut o1,
+        None,
+        false,
+        None,
+    )
+    .unwrap();
+    filter_general(
+        &[g],
+        Init::First,
+        &meas,
+        &mut s2,
+        &mut o2,
+        None,
+        false,
+        None,
+    )
+    .unwrap();
+    for k in 0..2 * n {
+        assert!(close(o1[k], o2[k]), "{k}: {} {}", o1[k], o2[k]);
+    }
+}
+
+#[test]
+fn bad_strides_and_param_counts_are_errors() {
+    let z = [1.0f64; 10];
+    let m = Measurements {
+        data: &z,
+        base: 0,
+        s_track: 5,
+        s_sample: 1,
+        s_comp: 1,
+        n_tracks: 3,
+        n_samples: 5,
+        m: 1,
+    };
+    assert!(m.validate().is_err());
+    let meas = Measurements::contiguous(&z, 2, 5, 1).unwrap();
+    let mut st = [TrackState::default(); 2];
+    let mut out = vec![0.0; 20];
+    assert!(filter_ab(
+        &[(0.5, 0.1, 1.0); 3],
+        Init::First,
+        &meas,
+        &mut st,
+        &mut out,
+        None,
+        false,
+        None
+    )
+    .is_err());
+}
