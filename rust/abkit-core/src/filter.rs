@@ -415,17 +415,15 @@ impl AbConst {
 fn ab_step<const FMA: bool>(c: &AbConst, x: f64, v: f64, z: f64) -> (f64, f64, f64) {
     let xp = madd::<FMA>(c.t, v, x);
     let e = z - xp;
-    let w = madd::<FMA>(c.g2, z, v);
-    // Test z, not e: the branch condition stays off the dependency chain.
-    if z.is_nan() {
-        (xp, v, e)
-    } else {
-        (
-            madd::<FMA>(c.one_minus_alpha, xp, c.alpha * z),
-            madd::<FMA>(-c.g2, xp, w),
-            e,
-        )
-    }
+    // A missed sample (NaN) becomes coefficients (1, 0) and gain 0, selected
+    // from z alone, so no compare or blend sits on the dependency chain:
+    // x' = 1 * x_p + 0 = x_p, v' = v - 0 * x_p = v.
+    let valid = !z.is_nan();
+    let zz = if valid { z } else { 0.0 };
+    let c1 = if valid { c.one_minus_alpha } else { 1.0 };
+    let g = if valid { c.g2 } else { 0.0 };
+    let w = madd::<FMA>(g, zz, v);
+    (madd::<FMA>(c1, xp, c.alpha * zz), madd::<FMA>(-g, xp, w), e)
 }
 
 /// Steady-state alpha-beta loop of one track over samples `k0..n`.
