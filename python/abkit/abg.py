@@ -53,8 +53,9 @@ References
 
 from __future__ import annotations
 
+import math
 import re
-from typing import Any, NamedTuple, Optional, Tuple, Union
+from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
@@ -420,6 +421,67 @@ class ABG:
     @property
     def lag(self) -> Lag:
         return Lag(*(self._get(f"lag_{q}_{k}") for k in ("filtered", "predicted") for q in ("position", "velocity", "acceleration")))
+
+    def to_dict(self) -> Dict[str, Any]:
+        """All fields as plain Python values (lists for arrays); JSON-serialisable.
+
+        Non-finite values become ``None``; complex poles ``[re, im]`` pairs.
+
+        Examples
+        --------
+        >>> from abkit import abg
+        >>> d = abg.from_tracking_index(1.0).to_dict()
+        >>> d["near_optimal"], d["convention"], len(d["poles"])
+        (True, 'chen-chui', 3)
+        """
+
+        def conv(x: Any) -> Any:
+            if isinstance(x, np.ndarray):
+                if np.iscomplexobj(x):
+                    return conv(np.stack([x.real, x.imag], axis=-1))
+                return [conv(v) for v in x] if x.ndim > 0 else conv(x.item())
+            if isinstance(x, (np.floating, float)):
+                return float(x) if math.isfinite(x) else None
+            if isinstance(x, (np.bool_, bool)):
+                return bool(x)
+            return x
+
+        d: Dict[str, Any] = {"design": self.design, "convention": self.convention, "h": self.h}
+        for name in ("alpha", "beta", "gamma", "near_optimal", "p_tilde_min_eig", "stable", "spectral_radius", "poles",
+                     "covariance_filtered", "covariance_predicted"):
+            d[name] = conv(getattr(self, name))
+        for name in ("noise_ratios", "variance_reduction", "lag"):
+            d[name] = {k: conv(v) for k, v in getattr(self, name)._asdict().items()}
+        return d
+
+    def table(self) -> str:
+        """A human-readable table of the design (scalar designs only)."""
+        if self._shape != ():
+            return repr(self)
+        q, vr, lag = self.noise_ratios, self.variance_reduction, self.lag
+        rows: list = [
+            ("convention", self.convention),
+            ("alpha", self.alpha),
+            ("beta", self.beta),
+            ("gamma", self.gamma),
+            ("near-optimal (Chen & Chui)", self.near_optimal),
+            ("sigma_p/sigma_m", q.sigma_p),
+            ("sigma_v h^2/sigma_m", q.sigma_v),
+            ("sigma_a h^4/sigma_m", q.sigma_a),
+            ("stable", self.stable),
+            ("spectral radius", self.spectral_radius),
+            ("VRR position (filtered)", vr.position_filtered),
+            ("VRR velocity (filtered) [1/h^2]", vr.velocity_filtered),
+            ("VRR acceleration (filtered) [1/h^4]", vr.acceleration_filtered),
+            ("jerk lag, position (predicted) [j h^3]", lag.position_predicted),
+        ]
+        if self.h is not None:
+            rows.insert(0, ("h", self.h))
+        out = []
+        for k, v in rows:
+            val = f"{v:.6g}" if isinstance(v, float) else str(v)
+            out.append(f"{k:<40}{val:>16}")
+        return "\n".join(out)
 
     def filter(self, h: Optional[float] = None) -> Any:
         """An :class:`abkit.AlphaBetaGammaFilter` running these gains (period ``h``)."""

@@ -174,7 +174,67 @@ pub fn from_noise(sp: f64, sv: f64, sa: f64, sm: f64, h: f64) -> Result<[f64; 3]
     ]));
     let r = DMatrix::from_element(1, 1, 1.0 / scale);
     let kss = kalman_steady_state(&f, &hm, &q, &r)?;
-    Ok([kss.k_filt[(0, 0)], kss.k_filt[(1, 0)], kss.k_filt[(2, 0)]])
+    let x0 = [kss.k_filt[(0, 0)], kss.k_filt[(1, 0)], kss.k_filt[(2, 0)]];
+    Ok(polish(x0, [qp, qv, qa]))
+}
+
+/// Scaled residual of the Corollary's (iv)-(vi), multiplied out by
+/// `1 - alpha`, at gains `x` for the target ratios `t` (h = 1 units).
+fn corollary_residual(x: [f64; 3], t: [f64; 3]) -> (Vector3<f64>, f64) {
+    let [a, b, g] = x;
+    let om = 1.0 - a;
+    let f = Vector3::new(
+        a * a + a * b + 0.5 * a * g - 2.0 * b - t[0] * om,
+        b * b - 2.0 * a * g - t[1] * om,
+        g * g - t[2] * om,
+    );
+    let s = [
+        a * a + a * b + 0.5 * a * g + 2.0 * b + t[0] * om,
+        b * b + 2.0 * a * g + t[1] * om,
+        g * g + t[2] * om,
+    ];
+    let norm = (0..3).fold(0.0_f64, |m, i| {
+        m.max(f[i].abs() / s[i].max(f64::MIN_POSITIVE))
+    });
+    (f, norm)
+}
+
+/// Newton polish of Riccati gains on the Corollary's closed-form inverse
+/// map: a step is kept only if it lowers the scaled residual, so the result
+/// is never worse than the Riccati solution.
+fn polish(mut x: [f64; 3], t: [f64; 3]) -> [f64; 3] {
+    let (mut f, mut norm) = corollary_residual(x, t);
+    for _ in 0..4 {
+        if norm <= 4.0 * f64::EPSILON {
+            break;
+        }
+        let [a, b, g] = x;
+        let j = Matrix3::new(
+            2.0 * a + b + 0.5 * g + t[0],
+            a - 2.0,
+            0.5 * a,
+            -2.0 * g + t[1],
+            2.0 * b,
+            -2.0 * a,
+            t[2],
+            0.0,
+            2.0 * g,
+        );
+        let Some(dx) = j.lu().solve(&f) else { break };
+        let xn = [x[0] - dx[0], x[1] - dx[1], x[2] - dx[2]];
+        if !(xn[0] > 0.0 && xn[0] < 1.0 && xn[2] > 0.0 && xn.iter().all(|v| v.is_finite())) {
+            break;
+        }
+        let (fn_, nn) = corollary_residual(xn, t);
+        if nn < norm {
+            x = xn;
+            f = fn_;
+            norm = nn;
+        } else {
+            break;
+        }
+    }
+    x
 }
 
 /// The Corollary's matrix P~ (iii), built from the gains.
