@@ -414,3 +414,52 @@ def test_decoupled_white_case_matches_alpha_beta_gamma_filter_and_errors() -> No
         abg.decoupled(0.5, 0.2, 0.02, h=0.0)
     with pytest.raises(ValueError, match="alpha"):
         abg.decoupled(np.nan, 0.2, 0.02)
+
+
+# ------------------------------------------------------- extremes, properties
+@pytest.mark.parametrize("lam", [1e-12, 1e-6, 1e3, 1e8])
+def test_poles_and_stability_at_extreme_gains(lam: float) -> None:
+    """Near-optimal gains are stable, also where all poles crowd z = 1;
+    poles against 40-digit roots of the characteristic polynomial."""
+    d = abg.from_tracking_index(lam)
+    assert d.stable and d.spectral_radius < 1
+    with mpmath.workdps(40):
+        a, b, g = (mpmath.mpf(x) for x in (d.alpha, d.beta, d.gamma))
+        roots = mpmath.polyroots([1, -(3 - a - b - g / 2), 3 - 2 * a - b + g / 2, -(1 - a)], maxsteps=200, extraprec=200)
+        want = np.array([complex(r) for r in roots])
+    got = d.poles
+    for w in want:
+        assert np.min(np.abs(got - w)) <= 1e-9 * max(1.0, abs(w)) + 1e-12
+
+
+def test_no_nan_for_finite_gains() -> None:
+    rng = np.random.default_rng(11)
+    a = np.concatenate([rng.uniform(-1, 3, 300), [1e-300, 1e300, 0.0, 1.0]])
+    b = np.concatenate([rng.uniform(-1, 3, 300), [1e-300, 1e300, 0.0, 2.0]])
+    g = np.concatenate([rng.uniform(-1, 3, 300), [1e-300, 1e300, 0.0, 0.5]])
+    d = abg.analyze(a, b, g)
+    rows = d._rows
+    model = [abg._IDX[k] for k in ("q_p", "q_v", "q_a", "p11", "p12", "p13", "p22", "p23", "p33", "m11", "m12", "m13", "m22", "m23", "m33")]
+    other = np.setdiff1d(np.arange(rows.shape[1]), model)
+    assert not np.isnan(rows[:, other]).any()
+    # the model columns are NaN exactly where the gains are not near-optimal (or unstable: inf)
+    assert np.all(np.isnan(rows[~d.near_optimal][:, model[:3]]))
+    assert not np.isnan(rows[d.near_optimal][:, model]).any()
+
+
+def test_round_trip_property_random_noise() -> None:
+    """noise -> gains -> noise to 1e-10 (relative to the largest normalised
+    ratio) for random noise over six decades."""
+    rng = np.random.default_rng(2)
+    n = 300
+    sp, sv, sa = (10.0 ** rng.uniform(-3, 3, n) * (rng.random(n) > 0.2) for _ in range(3))
+    sa = np.where(sa == 0, 1.0, sa)
+    sm, h = 10.0 ** rng.uniform(-1, 1, n), 10.0 ** rng.uniform(-0.5, 0.5, n)
+    d = abg.from_noise(sp, sv, sa, sm, h)
+    # (beyond, the ratios divide by a 1 - alpha that float64 gains hold only
+    # to eps / (1 - alpha); see docs/abg.md)
+    assert np.min(1 - d.alpha) > 1e-5
+    q = abg.noise_ratios(d.alpha, d.beta, d.gamma, h)
+    scale = np.maximum(np.maximum(sp, sv * h**2), sa * h**4) / sm
+    for got, want, hp in zip(q, (sp / sm, sv / sm, sa / sm), (1.0, h**2, h**4)):
+        assert np.all(np.abs(got - want) * hp <= 1e-10 * scale + 1e-12 * np.abs(want) * hp)

@@ -391,6 +391,8 @@ pub struct Analysis {
     pub q: [f64; 3],
     /// Spectral radius of `(I - w H) Phi`.
     pub rho: f64,
+    /// All poles strictly inside the unit circle (decided on `u = z - 1`).
+    pub stable: bool,
     /// Closed-loop poles `(re, im)`, by decreasing modulus.
     pub poles: [(f64, f64); 3],
     /// Measurement-noise-only covariances (filtered, predicted), 3x3.
@@ -434,6 +436,75 @@ pub fn lyapunov(w: &Vector3<f64>, q: &Matrix3<f64>) -> Result<(Matrix3<f64>, Mat
     Ok((p, m))
 }
 
+/// Roots of `x^2 + p x + q` as `(re, im)`, without cancellation.
+fn quadratic_roots(p: f64, q: f64) -> [(f64, f64); 2] {
+    let disc = 0.25 * p * p - q;
+    if disc >= 0.0 {
+        let t = -0.5 * p - (0.5 * p).signum() * disc.sqrt();
+        if t == 0.0 {
+            [(0.0, 0.0), (0.0, 0.0)]
+        } else {
+            [(t, 0.0), (q / t, 0.0)]
+        }
+    } else {
+        let im = (-disc).sqrt();
+        [(-0.5 * p, im), (-0.5 * p, -im)]
+    }
+}
+
+/// Roots of `x^3 + c2 x^2 + c1 x + c0` as `(re, im)`: eigenvalues of the
+/// companion matrix, scaled (`x = s y`) to entries of order one, then
+/// Newton-polished on the polynomial (small roots next to a large one are
+/// otherwise only accurate to `eps` times the largest).
+fn cubic_roots(c2: f64, c1: f64, c0: f64) -> Result<Vec<(f64, f64)>> {
+    use nalgebra::Complex;
+    if c0 == 0.0 {
+        let [r1, r2] = quadratic_roots(c2, c1);
+        return Ok(vec![r1, r2, (0.0, 0.0)]);
+    }
+    let s = c2.abs().max(c1.abs().sqrt()).max(c0.abs().cbrt());
+    let s = if s > 0.0 && s.is_finite() { s } else { 1.0 };
+    let comp = DMatrix::from_row_slice(
+        3,
+        3,
+        &[
+            -c2 / s,
+            -(c1 / s) / s,
+            -((c0 / s) / s) / s,
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            1.0,
+            0.0,
+        ],
+    );
+    let p = |z: Complex<f64>| ((z + c2) * z + c1) * z + c0;
+    let dp = |z: Complex<f64>| (z * 3.0 + 2.0 * c2) * z + c1;
+    Ok(eig_sorted(comp)?
+        .into_iter()
+        .map(|(re, im)| {
+            let mut z = Complex::new(re * s, im * s);
+            let mut pz = p(z).norm();
+            for _ in 0..4 {
+                let d = dp(z);
+                if d.norm() == 0.0 || !pz.is_finite() {
+                    break;
+                }
+                let zn = z - p(z) / d;
+                let pn = p(zn).norm();
+                if pn < pz && zn.re.is_finite() && zn.im.is_finite() {
+                    z = zn;
+                    pz = pn;
+                } else {
+                    break;
+                }
+            }
+            (z.re, if im == 0.0 { 0.0 } else { z.im })
+        })
+        .collect())
+}
+
 /// Eigenvalues of a small real matrix as `(re, im)`, by decreasing modulus.
 fn eig_sorted(m: DMatrix<f64>) -> Result<Vec<(f64, f64)>> {
     let n = m.nrows();
@@ -461,11 +532,41 @@ impl Analysis {
         for i in 0..3 {
             ikh[(i, 0)] -= w[i];
         }
-        let bm: Matrix3<f64> = ikh * phi;
-        let ev = eig_sorted(DMatrix::from_fn(3, 3, |i, j| bm[(i, j)]))?;
-        let rho = ev.iter().fold(0.0_f64, |m, z| m.max(z.0.hypot(z.1)));
-        let poles = [ev[0], ev[1], ev[2]];
-        let stable = rho < 1.0;
+        // Poles of p(z) = z^3 - (3 - a - b - g/2) z^2 + (3 - 2a - b + g/2) z
+        // - (1 - a), the characteristic polynomial of (I - w H) Phi. Small
+        // gains put all three near z = 1: there the roots u = z - 1 of
+        // p(1 + u) = u^3 + (a + b + g/2) u^2 + (b + 3g/2) u + g are accurate;
+        // elsewhere (e.g. near-deadbeat gains, poles near 0) p(z) itself is.
+        let near_one = a + b + 0.5 * g <= 1.0;
+        let (c2, c1, c0) = if near_one {
+            (a + b + 0.5 * g, b + 1.5 * g, g)
+        } else {
+            (
+                -(3.0 - a - b - 0.5 * g),
+                3.0 - 2.0 * a - b + 0.5 * g,
+                -(1.0 - a),
+            )
+        };
+        let roots = cubic_roots(c2, c1, c0)?;
+        // |z|^2 - 1, for z = 1 + u without cancellation.
+        let excess = |x: &(f64, f64)| {
+            if near_one {
+                2.0 * x.0 + x.0 * x.0 + x.1 * x.1
+            } else {
+                x.0 * x.0 + x.1 * x.1 - 1.0
+            }
+        };
+        let stable = roots.iter().all(|x| excess(x) < 0.0);
+        let shift = if near_one { 1.0 } else { 0.0 };
+        let mut poles = [(0.0, 0.0); 3];
+        for (p, x) in poles.iter_mut().zip(roots.iter()) {
+            *p = (shift + x.0, x.1);
+        }
+        poles.sort_by(|x, y| {
+            let (mx, my) = (x.0.hypot(x.1), y.0.hypot(y.1));
+            my.total_cmp(&mx).then(y.1.total_cmp(&x.1))
+        });
+        let rho = poles.iter().fold(0.0_f64, |m, z| m.max(z.0.hypot(z.1)));
         let q = if conditions[0] == 1.0 {
             noise_ratios(a, b, g, 1.0).unwrap_or([f64::NAN; 3])
         } else {
@@ -498,6 +599,7 @@ impl Analysis {
             conditions,
             q,
             rho,
+            stable,
             poles,
             vrr,
             cov,
@@ -512,7 +614,7 @@ impl Analysis {
         v.push(self.conditions[0]);
         v.push(self.conditions[3]);
         v.extend_from_slice(&self.q);
-        v.push(if self.rho < 1.0 { 1.0 } else { 0.0 });
+        v.push(if self.stable { 1.0 } else { 0.0 });
         v.push(self.rho);
         for p in &self.poles {
             v.push(p.0);
