@@ -463,3 +463,17 @@ def test_round_trip_property_random_noise() -> None:
     scale = np.maximum(np.maximum(sp, sv * h**2), sa * h**4) / sm
     for got, want, hp in zip(q, (sp / sm, sv / sm, sa / sm), (1.0, h**2, h**4)):
         assert np.all(np.abs(got - want) * hp <= 1e-10 * scale + 1e-12 * np.abs(want) * hp)
+
+
+def test_stability_region_matches_eigenvalues() -> None:
+    rng = np.random.default_rng(8)
+    a, b, g = rng.uniform(-0.5, 2.5, 3000), rng.uniform(-0.5, 4.0, 3000), rng.uniform(-0.5, 3.0, 3000)
+    jury = abg.stability_region(a, b, g).stable
+    eig = abg.analyze(a, b, g).stable
+    rho = np.array([max(abs(np.linalg.eigvals((np.eye(3) - np.array([[x], [y], [z]]) @ H3) @ phi()))) for x, y, z in zip(a, b, g)])
+    clear = np.abs(rho - 1) > 1e-9
+    np.testing.assert_array_equal(jury[clear], rho[clear] < 1)
+    np.testing.assert_array_equal(eig[clear], rho[clear] < 1)
+    assert 300 < jury.sum() < 2700
+    s = abg.stability_region(0.5, 0.2, 0.04, convention="standard")
+    assert s.stable and s.gamma == pytest.approx(0.02)

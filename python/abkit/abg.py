@@ -70,6 +70,7 @@ __all__ = [
     "Decoupled",
     "Gains",
     "NoiseRatios",
+    "StabilityMargins",
     "analyze",
     "coloured",
     "convert",
@@ -79,6 +80,7 @@ __all__ = [
     "from_tracking_index",
     "is_near_optimal",
     "noise_ratios",
+    "stability_region",
     "to_predictor",
 ]
 
@@ -721,6 +723,59 @@ def is_near_optimal(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike, *, conv
     shape, (a, b, g) = _prepare(("alpha", "beta", "gamma"), (alpha, beta, gamma))
     out = _call(_abkit.abg_conditions, shape, a, b, g * c)[:, 0].reshape(shape) != 0.0
     return bool(out) if out.ndim == 0 else out
+
+
+class StabilityMargins(NamedTuple):
+    """Jury's conditions for the alpha-beta-gamma loop as margins (all > 0 iff stable)."""
+
+    gamma: FloatOrArray
+    four_minus_2alpha_minus_beta: FloatOrArray
+    one_minus_abs_one_minus_alpha: FloatOrArray
+    determinant: FloatOrArray
+    stable: Union[bool, np.ndarray]
+
+
+def stability_region(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike, *, convention: str = "chen-chui") -> StabilityMargins:
+    r"""Closed-form stability region of the alpha-beta-gamma filter (Jury's test).
+
+    Parameters
+    ----------
+    alpha, beta, gamma : float or array_like
+        Gains in ``convention``, finite.
+    convention : {"chen-chui", "standard", "ghk"}
+
+    Returns
+    -------
+    StabilityMargins
+        The four margins (in the Chen-Chui convention) and the verdict.
+
+    Notes
+    -----
+    The closed loop has the characteristic polynomial (Theorem 3 with
+    ``theta = r = 0``)
+    ``p(z) = z^3 - (3 - alpha - beta - gamma/2) z^2 + (3 - 2 alpha - beta + gamma/2) z - (1 - alpha)``.
+    Jury's conditions ``p(1) > 0``, ``-p(-1) > 0``, ``|a0| < 1`` and
+    ``1 - a0^2 > |a0 a2 - a1|`` become::
+
+        gamma > 0,   2 alpha + beta < 4,   0 < alpha < 2,
+        alpha (2 - alpha) > |alpha^2 + alpha beta + alpha gamma/2 - 2 alpha - gamma|
+
+    (checked against the eigenvalues on random gains in the tests).
+
+    Examples
+    --------
+    >>> from abkit import abg
+    >>> abg.stability_region(0.5, 0.2, 0.02).stable
+    True
+    >>> abg.stability_region(0.5, 0.2, -0.02).stable
+    False
+    """
+    c = _check_convention("convention", convention)
+    shape, (a, b, g) = _prepare(("alpha", "beta", "gamma"), (alpha, beta, gamma))
+    m = _call(_abkit.abg_jury, shape, a, b, g * c)
+    st = np.all(m > 0, axis=1).reshape(shape)
+    col = [_out(m[:, i].reshape(shape)) for i in range(4)]
+    return StabilityMargins(col[0], col[1], col[2], col[3], bool(st) if st.ndim == 0 else st)
 
 
 class Coloured(NamedTuple):

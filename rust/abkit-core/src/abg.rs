@@ -333,6 +333,23 @@ pub fn noise_ratios(a: f64, b: f64, g: f64, h: f64) -> Result<[f64; 3]> {
     Ok([np / one_m, nv / one_m / h2, g * g / one_m / (h2 * h2)])
 }
 
+/// Jury's stability conditions for the alpha-beta-gamma closed loop
+/// `p(z) = z^3 - (3 - a - b - g/2) z^2 + (3 - 2a - b + g/2) z - (1 - a)`
+/// as margins (all > 0 iff every pole is inside the unit circle):
+/// `[p(1) = g, -p(-1) = 4 - 2a - b (times 2), 1 - |1 - a|,
+/// a (2 - a) - |a^2 + a b + a g/2 - 2a - g|]`.
+pub fn jury_margins(a: f64, b: f64, g: f64) -> Result<[f64; 4]> {
+    finite("alpha", a)?;
+    finite("beta", b)?;
+    finite("gamma", g)?;
+    Ok([
+        g,
+        4.0 - 2.0 * a - b,
+        1.0 - (1.0 - a).abs(),
+        a * (2.0 - a) - (a * a + a * b + 0.5 * a * g - 2.0 * a - g).abs(),
+    ])
+}
+
 /// Names of the values written by [`Analysis::write_row`], in order.
 pub const FIELDS: [&str; 40] = [
     "alpha",

@@ -127,3 +127,17 @@ pub(crate) fn abg_decoupled<'py>(
         },
     )
 }
+
+/// Jury stability margins (all > 0 iff stable).
+#[pyfunction]
+pub(crate) fn abg_jury<'py>(
+    py: Python<'py>,
+    alpha: PyReadonlyArray1<'py, f64>,
+    beta: PyReadonlyArray1<'py, f64>,
+    gamma: PyReadonlyArray1<'py, f64>,
+) -> Out<'py> {
+    rows(py, [alpha, beta, gamma], 4, |[a, b, g], out| {
+        out.copy_from_slice(&abg::jury_margins(a, b, g)?);
+        Ok(())
+    })
+}
