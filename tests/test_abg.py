@@ -477,3 +477,28 @@ def test_stability_region_matches_eigenvalues() -> None:
     assert 300 < jury.sum() < 2700
     s = abg.stability_region(0.5, 0.2, 0.04, convention="standard")
     assert s.stable and s.gamma == pytest.approx(0.02)
+
+
+@pytest.mark.parametrize("sp,sv,sa,sm,r,h", [(3.0, 2.0, 1.0, 5.0, 0.6, 0.8), (0.1, 0.5, 1.0, 0.3, -0.4, 1.0), (0.0, 0.2, 2.0, 1.0, 0.9, 0.5), (1.0, 1.0, 1.0, 0.0, 0.5, 1.0)])
+def test_coloured_from_noise_against_recursion_and_round_trip(sp, sv, sa, sm, r, h) -> None:
+    S, w = _coloured_reference(sp, sv, sa, sm, r, h)
+    g = abg.coloured_from_noise(sp, sv, sa, sm, r, h)
+    np.testing.assert_allclose(g, w, rtol=1e-8, atol=1e-12)
+    assert g.alpha + g.theta == pytest.approx(1.0, abs=1e-12)
+    if sm > 0:
+        c = abg.coloured(*g, r, h)
+        assert c.near_optimal
+        np.testing.assert_allclose([c.sigma_p_over_sigma_a, c.sigma_v_over_sigma_a, c.sigma_m_over_sigma_a], np.array([sp, sv, sm]) / sa, rtol=1e-9, atol=1e-9)
+    s = abg.coloured_from_noise(sp, sv, sa, sm, r, h, convention="standard")
+    assert s.gamma == pytest.approx(2 * g.gamma, rel=1e-15)
+
+
+def test_coloured_from_noise_errors() -> None:
+    with pytest.raises(np.linalg.LinAlgError, match="sigma_a"):
+        abg.coloured_from_noise(1.0, 1.0, 0.0, 1.0, 0.5)
+    with pytest.raises(ValueError, match="r"):
+        abg.coloured_from_noise(1.0, 1.0, 1.0, 1.0, 1.0)
+    with pytest.raises(ValueError, match="sigma_m"):
+        abg.coloured_from_noise(1.0, 1.0, 1.0, -1.0, 0.5)
+    g = abg.coloured_from_noise([1.0, 2.0], 1.0, 1.0, 1.0, [[0.1], [0.5]])
+    assert np.shape(g.theta) == (2, 2)

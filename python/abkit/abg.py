@@ -67,12 +67,14 @@ __all__ = [
     "ABG",
     "CONVENTIONS",
     "Coloured",
+    "ColouredGains",
     "Decoupled",
     "Gains",
     "NoiseRatios",
     "StabilityMargins",
     "analyze",
     "coloured",
+    "coloured_from_noise",
     "convert",
     "decoupled",
     "from_noise",
@@ -871,6 +873,70 @@ def coloured(
         riccati_gains=row[:, 10:14].reshape(shape + (4,)),
         gain_mismatch=_out(f["gain_mismatch"]),
     )
+
+
+class ColouredGains(NamedTuple):
+    """Alpha-beta-gamma-theta gains (``gamma`` in the requested convention)."""
+
+    alpha: FloatOrArray
+    beta: FloatOrArray
+    gamma: FloatOrArray
+    theta: FloatOrArray
+
+
+def coloured_from_noise(
+    sigma_p: ArrayLike, sigma_v: ArrayLike, sigma_a: ArrayLike, sigma_m: ArrayLike, r: ArrayLike, h: ArrayLike = 1.0, *, convention: str = "chen-chui"
+) -> ColouredGains:
+    r"""Near-optimal alpha-beta-gamma-theta gains for coloured measurement noise.
+
+    Parameters
+    ----------
+    sigma_p, sigma_v, sigma_a : float or array_like
+        Process noise variances (``sigma_a > 0``, Theorem 1).
+    sigma_m : float or array_like
+        Variance of the driving noise ``eta`` of the measurement noise
+        ``v_k+1 = r v_k + eta_k``, >= 0.
+    r : float or array_like
+        Correlation, ``|r| < 1``.
+    h : float or array_like
+        Sampling period, > 0.
+    convention : {"chen-chui", "standard", "ghk"}
+
+    Returns
+    -------
+    ColouredGains
+
+    Raises
+    ------
+    ValueError
+        Naming a bad argument.
+    numpy.linalg.LinAlgError
+        If ``sigma_a = 0`` or the Riccati problem has no stabilising solution.
+
+    Notes
+    -----
+    The limiting Kalman gain of Theorem 1's augmented model with ``G = 0``,
+    ``F = r`` (state ``[x, x', x'', v]``, ``H = [1, 0, 0, 1]``, ``R = 0``),
+    from :func:`abkit.riccati.solve_dare` (which handles the singular ``R``);
+    ``K_c = Phi_c [alpha, beta/h, gamma/h^2, theta]`` (sec. 3). The result
+    satisfies ``alpha + theta = 1`` and :func:`coloured` recovers the noise.
+
+    Examples
+    --------
+    >>> from abkit import abg
+    >>> g = abg.coloured_from_noise(3.0, 2.0, 1.0, 5.0, r=0.6, h=0.8)
+    >>> round(g.alpha + g.theta, 12)
+    1.0
+    >>> c = abg.coloured(*g, r=0.6, h=0.8)
+    >>> c.near_optimal, round(c.sigma_m_over_sigma_a, 9)
+    (True, 5.0)
+    """
+    c = _check_convention("convention", convention)
+    names = ("sigma_p", "sigma_v", "sigma_a", "sigma_m", "r", "h")
+    shape, flat = _prepare(names, (sigma_p, sigma_v, sigma_a, sigma_m, r, h))
+    k = _call(_abkit.abg_coloured_from_noise, shape, *flat)
+    col = [k[:, i].reshape(shape) for i in range(4)]
+    return ColouredGains(_out(col[0]), _out(col[1]), _out(col[2] / c), _out(col[3]))
 
 
 class Decoupled(NamedTuple):

@@ -763,34 +763,12 @@ pub fn coloured(a: f64, b: f64, g: f64, th: f64, r: f64, h: f64) -> Result<[f64;
         // Scaled state (x, v h, a h^2, noise): Q = diag(sp, sv h^2, sa h^4, sm)
         // divided by sa h^4.
         let qd = [nq[0].max(0.0), nq[1].max(0.0), 1.0, nq[2].max(0.0)];
-        let s = qd.iter().fold(1.0_f64, |m, &x| m.max(x));
-        let mut f = DMatrix::<f64>::zeros(4, 4);
-        let p = phi1();
-        for i in 0..3 {
-            for j in 0..3 {
-                f[(i, j)] = p[(i, j)];
-            }
-        }
-        f[(3, 3)] = r;
-        let hm = DMatrix::from_row_slice(1, 4, &[1.0, 0.0, 0.0, 1.0]);
-        let q = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
-            4,
-            qd.iter().map(|x| x / s),
-        ));
-        let zero = DMatrix::<f64>::zeros(1, 1);
-        if let Ok(d) = solve_dare(&f.transpose(), &hm.transpose(), &q, &zero, None) {
-            let x = &d.x;
-            let ph = x * hm.transpose();
-            let s0 = (&hm * &ph)[(0, 0)];
-            if s0 > 0.0 {
-                for (i, k) in kr.iter_mut().enumerate() {
-                    *k = ph[(i, 0)] / s0;
-                }
-                let given = [a, b, g, th];
-                mismatch = (0..4).fold(0.0_f64, |m, i| {
-                    m.max((kr[i] - given[i]).abs() / given[i].abs().max(1.0))
-                });
-            }
+        if let Ok(k) = coloured_gain(qd, r) {
+            kr = k;
+            let given = [a, b, g, th];
+            mismatch = (0..4).fold(0.0_f64, |m, i| {
+                m.max((kr[i] - given[i]).abs() / given[i].abs().max(1.0))
+            });
         }
     }
     let near = conditions_hold && mismatch <= 1e-6;
@@ -814,6 +792,73 @@ pub fn coloured(a: f64, b: f64, g: f64, th: f64, r: f64, h: f64) -> Result<[f64;
         flag(conditions_hold),
         flag(near),
     ])
+}
+
+/// Limiting gain `[alpha, beta, gamma, theta]` (paper convention) of the
+/// augmented coloured-noise model in scaled units (`h = 1`):
+/// `Q = diag(q)`, `F = diag(Phi, r)`, `H = [1, 0, 0, 1]`, `R = 0`.
+fn coloured_gain(q: [f64; 4], r: f64) -> Result<[f64; 4]> {
+    let s = q.iter().fold(1.0_f64, |m, &x| m.max(x));
+    let mut f = DMatrix::<f64>::zeros(4, 4);
+    let p = phi1();
+    for i in 0..3 {
+        for j in 0..3 {
+            f[(i, j)] = p[(i, j)];
+        }
+    }
+    f[(3, 3)] = r;
+    let hm = DMatrix::from_row_slice(1, 4, &[1.0, 0.0, 0.0, 1.0]);
+    let qm = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+        4,
+        q.iter().map(|x| x / s),
+    ));
+    let zero = DMatrix::<f64>::zeros(1, 1);
+    let d = solve_dare(&f.transpose(), &hm.transpose(), &qm, &zero, None)?;
+    let ph = &d.x * hm.transpose();
+    let s0 = (&hm * &ph)[(0, 0)];
+    if !(s0 > 0.0 && s0.is_finite()) {
+        return Err(Error::NoSolution(
+            "the innovation variance of the coloured-noise filter is not positive".into(),
+        ));
+    }
+    Ok([
+        ph[(0, 0)] / s0,
+        ph[(1, 0)] / s0,
+        ph[(2, 0)] / s0,
+        ph[(3, 0)] / s0,
+    ])
+}
+
+/// Near-optimal alpha-beta-gamma-theta gains (paper convention) for
+/// coloured measurement noise: the limiting Kalman gain of the augmented
+/// model with `Q = diag(sigma_p, sigma_v, sigma_a)`, noise
+/// `v+ = r v + eta`, `var eta = sigma_m`, no white measurement noise.
+pub fn coloured_from_noise(sp: f64, sv: f64, sa: f64, sm: f64, r: f64, h: f64) -> Result<[f64; 4]> {
+    nonneg("sigma_p", sp)?;
+    nonneg("sigma_v", sv)?;
+    nonneg("sigma_a", sa)?;
+    nonneg("sigma_m", sm)?;
+    positive("h", h)?;
+    if !(r.is_finite() && r.abs() < 1.0) {
+        return Err(Error::domain("r", "in the open interval (-1, 1)", r));
+    }
+    if sa == 0.0 {
+        return Err(Error::NoSolution(
+            "sigma_a = 0: no limiting Kalman gain exists (Lemma 2 / Theorem 1 need sigma_a != 0)"
+                .into(),
+        ));
+    }
+    let h2 = h * h;
+    let qa = sa * h2 * h2;
+    let q = [sp / qa, sv * h2 / qa, 1.0, sm / qa];
+    if !q.iter().all(|x| x.is_finite()) {
+        return Err(Error::domain(
+            "sigma_a*h**4",
+            "large enough that the noise ratios are representable in float64",
+            qa,
+        ));
+    }
+    coloured_gain(q, r)
 }
 
 /// Width of the row written by [`decoupled`]: numerators 4 x 4 (position,

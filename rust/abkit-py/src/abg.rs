@@ -141,3 +141,26 @@ pub(crate) fn abg_jury<'py>(
         Ok(())
     })
 }
+
+/// Near-optimal alpha-beta-gamma-theta gains for coloured measurement noise.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn abg_coloured_from_noise<'py>(
+    py: Python<'py>,
+    sigma_p: PyReadonlyArray1<'py, f64>,
+    sigma_v: PyReadonlyArray1<'py, f64>,
+    sigma_a: PyReadonlyArray1<'py, f64>,
+    sigma_m: PyReadonlyArray1<'py, f64>,
+    r: PyReadonlyArray1<'py, f64>,
+    h: PyReadonlyArray1<'py, f64>,
+) -> Out<'py> {
+    rows(
+        py,
+        [sigma_p, sigma_v, sigma_a, sigma_m, r, h],
+        4,
+        |[p, v, a, m, r, h], out| {
+            out.copy_from_slice(&abg::coloured_from_noise(p, v, a, m, r, h)?);
+            Ok(())
+        },
+    )
+}
