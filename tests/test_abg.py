@@ -502,3 +502,16 @@ def test_coloured_from_noise_errors() -> None:
         abg.coloured_from_noise(1.0, 1.0, 1.0, -1.0, 0.5)
     g = abg.coloured_from_noise([1.0, 2.0], 1.0, 1.0, 1.0, [[0.1], [0.5]])
     assert np.shape(g.theta) == (2, 2)
+
+
+@pytest.mark.parametrize("lam", [1e-3, 0.1, 1.0, 10.0, 1e3])
+def test_tracking_index_continuous_white_jerk(lam: float) -> None:
+    Qc = lam**2 * np.array([[1 / 20, 1 / 8, 1 / 6], [1 / 8, 1 / 3, 1 / 2], [1 / 6, 1 / 2, 1.0]])
+    S = sla.solve_discrete_are(phi().T, H3.T, Qc, np.array([[1.0]]))
+    w = (S @ H3.T / (S[0, 0] + 1.0)).ravel()
+    d = abg.from_tracking_index(lam, model="continuous")
+    np.testing.assert_allclose([d.alpha, d.beta, d.gamma], w, rtol=1e-7)
+    assert d.stable
+    assert abg.from_tracking_index(lam, model="dwpa").gamma == abg.from_tracking_index(lam).gamma
+    with pytest.raises(ValueError, match="model"):
+        abg.from_tracking_index(lam, model="singer")

@@ -151,7 +151,7 @@ def _check_convention(name: str, convention: str) -> float:
     return float(CONVENTIONS[convention])
 
 
-def _call(func: Any, shape: Tuple[int, ...], *flat: np.ndarray) -> np.ndarray:
+def _call(func: Any, shape: Tuple[int, ...], *flat: Any) -> np.ndarray:
     """Call a Rust binding; restate its flat element index in the broadcast shape."""
     try:
         return np.asarray(func(*flat))
@@ -564,19 +564,28 @@ def from_noise(
     return _analyse(g[:, 0].copy(), g[:, 1].copy(), g[:, 2].copy(), shape, h, convention, "from_noise")
 
 
-def from_tracking_index(lam: ArrayLike, *, convention: str = "chen-chui") -> ABG:
+def from_tracking_index(lam: ArrayLike, *, model: str = "acceleration", convention: str = "chen-chui") -> ABG:
     r"""Closed-form near-optimal gains when only the acceleration is driven.
 
     Parameters
     ----------
     lam : float or array_like
         Tracking index ``sqrt(sigma_a / sigma_m) h^2`` (``sigma_a``,
-        ``sigma_m`` variances), finite, > 0.
+        ``sigma_m`` variances), finite, > 0; for ``model="continuous"``
+        ``sqrt(q h / sigma_m) h^2`` with ``q`` the jerk power spectral density.
+    model : {"acceleration", "dwpa", "continuous"}
+        ``"acceleration"`` (``Q = diag(0, 0, sigma_a)``) and ``"dwpa"``
+        (discrete white jerk) have the same gains, in closed form;
+        ``"continuous"`` is the continuous white-noise jerk model
+        ``Q = q [[h^5/20, h^4/8, h^3/6], [h^4/8, h^3/3, h^2/2], [h^3/6, h^2/2, h]]``,
+        solved by the Riccati solver (no closed form).
     convention : {"chen-chui", "standard", "ghk"}
 
     Returns
     -------
     ABG
+        (``near_optimal`` refers to Chen & Chui's diagonal ``Q``: it is
+        ``False`` for most ``"continuous"`` designs.)
 
     Notes
     -----
@@ -607,8 +616,10 @@ def from_tracking_index(lam: ArrayLike, *, convention: str = "chen-chui") -> ABG
     True
     """
     _check_convention("convention", convention)
+    if model not in ("acceleration", "dwpa", "continuous"):
+        raise ValueError(f"model must be 'acceleration', 'dwpa' or 'continuous', got {model!r}")
     shape, flat = _prepare(("lam",), (lam,))
-    g = _call(_abkit.abg_from_tracking_index, shape, *flat)
+    g = _call(_abkit.abg_from_tracking_index, shape, flat[0], model == "continuous")
     return _analyse(g[:, 0].copy(), g[:, 1].copy(), g[:, 2].copy(), shape, None, convention, "from_tracking_index")
 
 

@@ -92,6 +92,40 @@ pub fn from_tracking_index(lam: f64) -> Result<[f64; 3]> {
     Ok([alpha, beta, gamma])
 }
 
+/// Limiting gains `[alpha, beta, gamma]` for the continuous white-noise
+/// jerk model (`Q = q [[h^5/20, h^4/8, h^3/6], [h^4/8, h^3/3, h^2/2],
+/// [h^3/6, h^2/2, h]]`, `R = sigma_m`) from `lam = sqrt(q h / sigma_m) h^2`.
+/// No closed form: the checked Riccati solver.
+pub fn from_tracking_index_continuous(lam: f64) -> Result<[f64; 3]> {
+    positive("lam", lam)?;
+    let l2 = lam * lam;
+    if !(l2.is_finite() && l2 > 0.0) {
+        return Err(Error::domain(
+            "lam",
+            "such that lam**2 is a finite positive float64",
+            lam,
+        ));
+    }
+    let s = l2.max(1.0);
+    let base = [
+        1.0 / 20.0,
+        1.0 / 8.0,
+        1.0 / 6.0,
+        1.0 / 8.0,
+        1.0 / 3.0,
+        0.5,
+        1.0 / 6.0,
+        0.5,
+        1.0,
+    ];
+    let q = DMatrix::from_row_slice(3, 3, &base) * (l2 / s);
+    let f = DMatrix::from_row_slice(3, 3, &[1.0, 1.0, 0.5, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0]);
+    let hm = DMatrix::from_row_slice(1, 3, &[1.0, 0.0, 0.0]);
+    let r = DMatrix::from_element(1, 1, 1.0 / s);
+    let k = kalman_steady_state(&f, &hm, &q, &r)?.k_filt;
+    Ok([k[(0, 0)], k[(1, 0)], k[(2, 0)]])
+}
+
 /// Newton's method for a monotone function with a sign change on `[lo, hi]`,
 /// falling back to bisection whenever a step leaves the bracket.
 fn newton_bracketed(

@@ -29,14 +29,21 @@ pub(crate) fn abg_from_noise<'py>(
     )
 }
 
-/// Closed-form gains of the acceleration-driven model from the tracking index.
+/// Gains from the tracking index: model 0 acceleration-driven / discrete
+/// white jerk (closed form), 1 continuous white jerk (Riccati).
 #[pyfunction]
 pub(crate) fn abg_from_tracking_index<'py>(
     py: Python<'py>,
     lam: PyReadonlyArray1<'py, f64>,
+    continuous: bool,
 ) -> Out<'py> {
     rows(py, [lam], 3, |[l], out| {
-        out.copy_from_slice(&abg::from_tracking_index(l)?);
+        let g = if continuous {
+            abg::from_tracking_index_continuous(l)?
+        } else {
+            abg::from_tracking_index(l)?
+        };
+        out.copy_from_slice(&g);
         Ok(())
     })
 }
