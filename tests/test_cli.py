@@ -133,6 +133,8 @@ def test_design_abg_sources() -> None:
     assert t["gamma"] == pytest.approx(2 * d["gamma"], rel=1e-14)
     n = json.loads(run("design", "abg", "--sigma-p", "0.3", "--sigma-v", "0.2", "--sigma-a", "0.1", "--sigma-m", "1", "-T", "0.7", "--json").stdout)
     assert n["h"] == 0.7 and n["noise_ratios"]["sigma_p"] == pytest.approx(0.3, rel=1e-10)
+    c = json.loads(run("design", "abg", "--tracking-index", "1", "--model", "continuous", "--json").stdout)
+    assert c["stable"] and c["alpha"] != d["alpha"]
     a = run("design", "abg", "--alpha", "0.5", "--beta", "0.2", "--gamma", "0.02")
     assert a.returncode == 0 and "near-optimal" in a.stdout
 

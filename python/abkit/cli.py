@@ -127,7 +127,7 @@ def _design_abg(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
             h = a.T if a.T is not None else 1.0
             d = abg.from_noise(a.sigma_p or 0.0, a.sigma_v or 0.0, a.sigma_a, a.sigma_m, h, convention=a.convention)
         elif srcs[1]:
-            d = abg.from_tracking_index(a.tracking_index, convention=a.convention)
+            d = abg.from_tracking_index(a.tracking_index, model=a.model, convention=a.convention)
         else:
             if any(v is None for v in gains):
                 p.error("--alpha, --beta and --gamma go together")
@@ -283,6 +283,9 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--sigma-m", type=float, help="measurement noise variance (> 0)")
     g.add_argument("-T", "--period", dest="T", type=float, help="sampling period h (default 1)")
     g.add_argument("--tracking-index", type=float, help="sqrt(sigma_a/sigma_m) T^2 (acceleration-driven model)")
+    g.add_argument("--model", choices=("acceleration", "dwpa", "continuous"), default="acceleration",
+                   help="noise model of --tracking-index (default acceleration; dwpa: same gains; "
+                   "continuous: continuous white jerk)")
     g.add_argument("--alpha", type=float, help="position gain")
     g.add_argument("--beta", type=float, help="velocity gain x T")
     g.add_argument("--gamma", type=float, help="acceleration gain (see --convention)")
