@@ -515,3 +515,18 @@ def test_tracking_index_continuous_white_jerk(lam: float) -> None:
     assert abg.from_tracking_index(lam, model="dwpa").gamma == abg.from_tracking_index(lam).gamma
     with pytest.raises(ValueError, match="model"):
         abg.from_tracking_index(lam, model="singer")
+
+
+def test_conversion_helpers_reject_bad_input() -> None:
+    with pytest.raises(ValueError, match="gamma"):
+        abg.convert(0.5, 0.2, np.nan)
+    with pytest.raises(ValueError, match="alpha"):
+        abg.to_predictor(np.inf, 0.2, 0.1)
+    with pytest.raises(ValueError, match="h"):
+        abg.to_predictor(0.5, 0.2, 0.1, h=0.0)
+    with pytest.raises(ValueError, match="K"):
+        abg.from_predictor([0.5, 0.2])
+    with pytest.raises(ValueError, match="K"):
+        abg.from_predictor([0.5, np.nan, 0.1])
+    with pytest.raises(TypeError):
+        abg.convert("a", 0.2, 0.1)

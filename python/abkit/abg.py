@@ -169,6 +169,13 @@ def _prepare(names: Tuple[str, ...], values: Tuple[Any, ...]) -> Tuple[Tuple[int
     return broadcast(names, arrays)
 
 
+def _finite(names: Tuple[str, ...], flat: list) -> None:
+    for n, x in zip(names, flat):
+        bad = ~np.isfinite(x)
+        if bad.any():
+            raise ValueError(f"{n} must be finite, got {x[bad][0]!r}")
+
+
 def _to_cc(gamma: np.ndarray, convention: str) -> np.ndarray:
     return gamma * _check_convention("convention", convention)
 
@@ -206,6 +213,7 @@ def convert(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike, frm: str = "sta
     cf = _check_convention("frm", frm)
     ct = _check_convention("to", to)
     shape, (a, b, g) = _prepare(("alpha", "beta", "gamma"), (alpha, beta, gamma))
+    _finite(("alpha", "beta", "gamma"), [a, b, g])
     a, b, g = (x.reshape(shape) for x in (a, b, g))
     return Gains(_out(a.copy()), _out(b.copy()), _out(g * (cf / ct)))
 
@@ -243,6 +251,7 @@ def to_predictor(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike, h: ArrayLi
     """
     c = _check_convention("convention", convention)
     shape, (a, b, g, t) = _prepare(("alpha", "beta", "gamma", "h"), (alpha, beta, gamma, h))
+    _finite(("alpha", "beta", "gamma"), [a, b, g])
     if not np.all(np.isfinite(t) & (t > 0)):
         raise ValueError(f"h must be finite and > 0, got {h!r}")
     w2 = c * g / (t * t)
@@ -282,6 +291,8 @@ def from_predictor(K: ArrayLike, h: ArrayLike = 1.0, *, convention: str = "chen-
     k = as_float_array("K", K)
     if k.ndim < 1 or k.shape[-1] != 3:
         raise ValueError(f"K must have shape (..., 3), got {k.shape}")
+    if not np.all(np.isfinite(k)):
+        raise ValueError("K must be finite (no NaN or Inf entries)")
     t = as_float_array("h", h)
     if not np.all(np.isfinite(t) & (t > 0)):
         raise ValueError(f"h must be finite and > 0, got {h!r}")
