@@ -530,3 +530,13 @@ def test_conversion_helpers_reject_bad_input() -> None:
         abg.from_predictor([0.5, np.nan, 0.1])
     with pytest.raises(TypeError):
         abg.convert("a", 0.2, 0.1)
+
+
+def test_design_filter_and_repr() -> None:
+    d = abg.from_noise(0.3, 0.2, 0.1, 1.0, h=0.7, convention="standard")
+    f = d.filter()
+    assert f.convention == "standard" and f.T == 0.7
+    np.testing.assert_allclose(f.gamma, d.gamma)
+    assert "near_optimal=True" in repr(d)
+    assert "shape=(2,)" in repr(abg.analyze([0.5, 0.6], 0.2, 0.02))
+    assert abg.analyze([0.5, 0.6], 0.2, 0.02).table().startswith("ABG(")
