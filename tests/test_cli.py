@@ -121,3 +121,34 @@ def test_demo_fleet_errors_match_theory() -> None:
 def test_demo_bad_flags(args: list) -> None:
     out = run("demo", "--no-plot", *args)
     assert out.returncode == 2 and "Traceback" not in out.stderr
+
+
+def test_design_abg_sources() -> None:
+    """`abkit design abg`: noise, tracking index (closed form 2(1-s)^3 = lam s (1+s)) and analysis."""
+    d = json.loads(run("design", "abg", "--sigma-a", "1", "--sigma-m", "1", "--json").stdout)
+    s = math.sqrt(1 - d["alpha"])
+    assert 2 * (1 - s) ** 3 == pytest.approx(s * (1 + s), rel=1e-12)
+    assert d["near_optimal"] and d["convention"] == "chen-chui"
+    t = json.loads(run("design", "abg", "--tracking-index", "1", "--convention", "standard", "--json").stdout)
+    assert t["gamma"] == pytest.approx(2 * d["gamma"], rel=1e-14)
+    n = json.loads(run("design", "abg", "--sigma-p", "0.3", "--sigma-v", "0.2", "--sigma-a", "0.1", "--sigma-m", "1", "-T", "0.7", "--json").stdout)
+    assert n["h"] == 0.7 and n["noise_ratios"]["sigma_p"] == pytest.approx(0.3, rel=1e-10)
+    c = json.loads(run("design", "abg", "--tracking-index", "1", "--model", "continuous", "--json").stdout)
+    assert c["stable"] and c["alpha"] != d["alpha"]
+    a = run("design", "abg", "--alpha", "0.5", "--beta", "0.2", "--gamma", "0.02")
+    assert a.returncode == 0 and "near-optimal" in a.stdout
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--sigma-a", "0", "--sigma-m", "1"], "Lemma 2"),
+        (["--sigma-a", "-1", "--sigma-m", "1"], "sigma_a"),
+        (["--tracking-index", "1", "--alpha", "0.5"], "exactly one"),
+        (["--alpha", "0.5", "--beta", "0.2"], "go together"),
+        (["--sigma-p", "1"], "required"),
+    ],
+)
+def test_design_abg_errors_exit_2(args: list, needle: str) -> None:
+    out = run("design", "abg", *args)
+    assert out.returncode == 2 and needle in out.stderr

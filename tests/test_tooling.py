@@ -15,7 +15,7 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.parametrize("module", ["abkit.alphabeta", "abkit.riccati", "abkit.singer", "abkit.plot", "abkit.cli", "abkit.filters", "abkit.kalman"])
+@pytest.mark.parametrize("module", ["abkit.abg", "abkit.alphabeta", "abkit.riccati", "abkit.singer", "abkit.plot", "abkit.cli", "abkit.filters", "abkit.kalman"])
 def test_doctests(module: str) -> None:
     """Every docstring example runs and prints what it shows."""
     pytest.importorskip("matplotlib")
@@ -65,6 +65,14 @@ def test_errata_check_script_001_passes() -> None:
     """docs/errata_checks_001.py (paper 001, Yoon & Hong) re-derives every erratum and exits 0."""
     pytest.importorskip("scipy")
     out = subprocess.run([sys.executable, str(ROOT / "docs" / "errata_checks_001.py")], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+
+
+def test_errata_check_script_004_passes() -> None:
+    """docs/errata_checks_004.py (paper 004, Chen & Chui) re-derives every erratum and exits 0."""
+    pytest.importorskip("scipy")
+    pytest.importorskip("mpmath")
+    out = subprocess.run([sys.executable, str(ROOT / "docs" / "errata_checks_004.py")], capture_output=True, text=True)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
 
 

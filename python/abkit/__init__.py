@@ -5,6 +5,9 @@ the limits of, with a Rust core.
 
 Modules
 -------
+abg
+    Near-optimal alpha-beta-gamma filters (Chen & Chui): gains from noise
+    and back, coloured measurement noise, decoupled recursive forms.
 alphabeta
     Alpha-beta design (Kalman and deterministic) and analysis.
 kalman
@@ -21,7 +24,7 @@ plot
     Figures (the design nomograph); needs ``abkit[plot]``.
 """
 
-from . import alphabeta, filters, kalman, riccati, singer
+from . import abg, alphabeta, filters, kalman, riccati, singer
 from ._abkit import __version__
 from .alphabeta import AlphaBeta
 from .filters import (
@@ -34,6 +37,7 @@ from .filters import (
 )
 
 __all__ = [
+    "abg",
     "alphabeta",
     "filters",
     "kalman",

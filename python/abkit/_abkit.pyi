@@ -4,6 +4,15 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "abg_analyze",
+    "abg_coloured",
+    "abg_coloured_from_noise",
+    "abg_conditions",
+    "abg_decoupled",
+    "abg_from_noise",
+    "abg_from_tracking_index",
+    "abg_jury",
+    "abg_noise_ratios",
     "alphabeta_analyze",
     "alphabeta_error_covariance",
     "alphabeta_from_bandwidth",
@@ -20,6 +29,9 @@ __all__ = [
     "riccati_solve_dare",
     "singer_model",
     "singer_steady_state",
+    "ABG_COLOURED_FIELDS",
+    "ABG_DECOUPLED_WIDTH",
+    "ABG_FIELDS",
     "ALPHABETA_FIELDS",
     "SINGER_ROW_WIDTH",
     "STATE_WIDTH",
@@ -27,11 +39,24 @@ __all__ = [
 ]
 
 __version__: str
+ABG_FIELDS: list[str]
+ABG_COLOURED_FIELDS: list[str]
+ABG_DECOUPLED_WIDTH: int
 ALPHABETA_FIELDS: list[str]
 STATE_WIDTH: int
 SINGER_ROW_WIDTH: int
 
 _F64 = npt.NDArray[np.float64]
+
+def abg_from_noise(sigma_p: _F64, sigma_v: _F64, sigma_a: _F64, sigma_m: _F64, h: _F64) -> _F64: ...
+def abg_from_tracking_index(lam: _F64, continuous: bool) -> _F64: ...
+def abg_jury(alpha: _F64, beta: _F64, gamma: _F64) -> _F64: ...
+def abg_noise_ratios(alpha: _F64, beta: _F64, gamma: _F64, h: _F64) -> _F64: ...
+def abg_conditions(alpha: _F64, beta: _F64, gamma: _F64) -> _F64: ...
+def abg_analyze(alpha: _F64, beta: _F64, gamma: _F64) -> _F64: ...
+def abg_coloured(alpha: _F64, beta: _F64, gamma: _F64, theta: _F64, r: _F64, h: _F64) -> _F64: ...
+def abg_coloured_from_noise(sigma_p: _F64, sigma_v: _F64, sigma_a: _F64, sigma_m: _F64, r: _F64, h: _F64) -> _F64: ...
+def abg_decoupled(alpha: _F64, beta: _F64, gamma: _F64, theta: _F64, r: _F64, h: _F64) -> _F64: ...
 
 def alphabeta_from_snr(r: _F64) -> _F64: ...
 def alphabeta_from_noise(sigma_w: _F64, sigma_v: _F64, T: _F64) -> _F64: ...

@@ -4,6 +4,9 @@ Commands
 --------
 abkit design alphabeta ...
     Design or analyse an alpha-beta filter and print it as a table (or JSON).
+abkit design abg ...
+    Near-optimal alpha-beta-gamma design (Chen & Chui) from the noise or the
+    tracking index, or analysis of given gains.
 abkit demo
     The paper's GPS car example: design table, a simulated fleet filtered and
     smoothed (empirical vs theoretical errors, throughput), and the design
@@ -19,6 +22,7 @@ import sys
 from typing import List, Optional, Sequence
 
 from . import __version__
+from . import abg
 from . import alphabeta as ab
 
 __all__ = ["main"]
@@ -102,6 +106,40 @@ def _design_alphabeta(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     except (ValueError, TypeError) as exc:
         print(f"abkit design alphabeta: error: {exc}", file=sys.stderr)
         return 2
+    if a.json:
+        print(json.dumps(d.to_dict(), indent=2, allow_nan=False))
+    else:
+        print(d.table())
+    return 0
+
+
+def _design_abg(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
+    noise = [a.sigma_p, a.sigma_v, a.sigma_a, a.sigma_m]
+    gains = [a.alpha, a.beta, a.gamma]
+    srcs = [any(v is not None for v in noise), a.tracking_index is not None, any(v is not None for v in gains)]
+    if sum(srcs) != 1:
+        p.error("give exactly one design source: --sigma-p/--sigma-v/--sigma-a/--sigma-m [-T], "
+                "--tracking-index, or --alpha/--beta/--gamma")
+    try:
+        if srcs[0]:
+            if a.sigma_a is None or a.sigma_m is None:
+                p.error("--sigma-a and --sigma-m are required (--sigma-p, --sigma-v default to 0)")
+            h = a.T if a.T is not None else 1.0
+            d = abg.from_noise(a.sigma_p or 0.0, a.sigma_v or 0.0, a.sigma_a, a.sigma_m, h, convention=a.convention)
+        elif srcs[1]:
+            d = abg.from_tracking_index(a.tracking_index, model=a.model, convention=a.convention)
+        else:
+            if any(v is None for v in gains):
+                p.error("--alpha, --beta and --gamma go together")
+            d = abg.analyze(a.alpha, a.beta, a.gamma, convention=a.convention)
+    except (ValueError, TypeError, ArithmeticError) as exc:
+        print(f"abkit design abg: error: {exc}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # numpy.linalg.LinAlgError: no limiting gain
+        print(f"abkit design abg: error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+    if a.T is not None:
+        d.h = a.T
     if a.json:
         print(json.dumps(d.to_dict(), indent=2, allow_nan=False))
     else:
@@ -231,6 +269,30 @@ def _parser() -> argparse.ArgumentParser:
     q.add_argument("--beta", type=float, help="velocity gain x T")
     q.add_argument("--json", action="store_true", help="print JSON instead of a table")
     q.set_defaults(func=lambda a: _design_alphabeta(q, a))
+
+    g = dsub.add_parser(
+        "abg",
+        help="near-optimal alpha-beta-gamma design (Chen & Chui) or analysis of given gains",
+        description="Design a near-optimal alpha-beta-gamma filter (the limiting Kalman gain) from "
+        "the noise variances (--sigma-p --sigma-v --sigma-a --sigma-m [-T]) or the tracking index "
+        "sqrt(sigma_a/sigma_m) T^2 (--tracking-index), or analyse gains (--alpha --beta --gamma).",
+    )
+    g.add_argument("--sigma-p", type=float, help="position process noise variance (default 0)")
+    g.add_argument("--sigma-v", type=float, help="velocity process noise variance (default 0)")
+    g.add_argument("--sigma-a", type=float, help="acceleration process noise variance (> 0)")
+    g.add_argument("--sigma-m", type=float, help="measurement noise variance (> 0)")
+    g.add_argument("-T", "--period", dest="T", type=float, help="sampling period h (default 1)")
+    g.add_argument("--tracking-index", type=float, help="sqrt(sigma_a/sigma_m) T^2 (acceleration-driven model)")
+    g.add_argument("--model", choices=("acceleration", "dwpa", "continuous"), default="acceleration",
+                   help="noise model of --tracking-index (default acceleration; dwpa: same gains; "
+                   "continuous: continuous white jerk)")
+    g.add_argument("--alpha", type=float, help="position gain")
+    g.add_argument("--beta", type=float, help="velocity gain x T")
+    g.add_argument("--gamma", type=float, help="acceleration gain (see --convention)")
+    g.add_argument("--convention", choices=sorted(abg.CONVENTIONS), default="chen-chui",
+                   help="gamma convention (default chen-chui: gain gamma/T^2)")
+    g.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    g.set_defaults(func=lambda a: _design_abg(g, a))
 
     dm = sub.add_parser(
         "demo",

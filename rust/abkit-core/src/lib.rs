@@ -5,6 +5,9 @@
 //! (`abkit-py`) are a thin layer over these functions.
 //!
 //! Modules, one per idea:
+//! - [`abg`]: near-optimal alpha-beta-gamma filters of Chen & Chui (paper
+//!   004): gains from noise, noise ratios from gains, coloured measurement
+//!   noise (alpha-beta-gamma-theta), decoupled recursive forms.
 //! - [`alphabeta`]: the alpha-beta filter of Painter, Kerstetter & Jowers
 //!   (1990): Kalman design from the SNR, deterministic design from damping,
 //!   natural frequency or noise bandwidth, and the steady-state analysis of
@@ -26,6 +29,7 @@
 // No unwrap/expect outside tests: nothing derived from user data may panic.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod abg;
 pub mod alphabeta;
 pub mod batch;
 mod error;

@@ -33,6 +33,7 @@ macro_rules! dispatch {
     };
 }
 
+mod abg;
 mod alphabeta;
 mod convert;
 mod filter;
@@ -44,6 +45,11 @@ use pyo3::prelude::*;
 
 #[pymodule]
 mod _abkit {
+    #[pymodule_export]
+    use super::abg::{
+        abg_analyze, abg_coloured, abg_coloured_from_noise, abg_conditions, abg_decoupled,
+        abg_from_noise, abg_from_tracking_index, abg_jury, abg_noise_ratios,
+    };
     #[pymodule_export]
     use super::alphabeta::{
         alphabeta_analyze, alphabeta_error_covariance, alphabeta_from_bandwidth,
@@ -62,6 +68,12 @@ mod _abkit {
 
     #[pymodule_init]
     fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
+        m.add("ABG_FIELDS", abkit_core::abg::FIELDS.to_vec())?;
+        m.add(
+            "ABG_COLOURED_FIELDS",
+            abkit_core::abg::COLOURED_FIELDS.to_vec(),
+        )?;
+        m.add("ABG_DECOUPLED_WIDTH", abkit_core::abg::DECOUPLED_WIDTH)?;
         m.add("ALPHABETA_FIELDS", abkit_core::alphabeta::FIELDS.to_vec())?;
         m.add("STATE_WIDTH", super::filter::STATE_WIDTH)?;
         m.add("SINGER_ROW_WIDTH", abkit_core::singer::ROW_WIDTH)?;
