@@ -102,3 +102,37 @@ def test_transient_errors():
         f.run(np.arange(10.0), state=r.state)
     with pytest.raises(ValueError, match="limiting Kalman gains"):
         abkit.AlphaBetaFilter(d.alpha, d.beta, 1.0, transient="kalman", Q=np.eye(2), R=np.eye(1))
+
+
+def test_singer_fixed_gain_filter_with_kalman_transient():
+    """A Singer position+velocity design (abkit.singer) run with the exact
+    Kalman start: equals abkit.kalman's filter of the same model, and the
+    fixed-gain filter once the gains have converged (rtol 1e-9)."""
+    from abkit import kalman, singer
+
+    ss = singer.steady_state(T=1.0, tau=10.0, sigma_m=2.0, sigma_pos=5.0, sigma_vel=1.0)
+    Phi, H, K, Q, R = ss.Phi, ss.H, ss.K, ss.Q, ss.R
+    P0 = np.eye(3) * 100.0
+    f = abkit.FixedGainFilter(Phi, H, K, transient="kalman", Q=Q, R=R, P0=P0, x0=np.zeros(3))
+    rng = np.random.default_rng(5)
+    z = np.cumsum(rng.normal(size=(4, 500, 2)), axis=1)
+    got = f.run(z, init="first").states
+    want = kalman.KalmanFilter(Phi, H, Q, R, x0=np.zeros(3), P0=P0).run(z).states
+    assert np.array_equal(got, want)
+    fixed = abkit.FixedGainFilter(Phi, H, K).run(z, init="first").states
+    late = slice(450, 500)
+    scale = np.max(np.abs(fixed[:, :, late]))
+    assert np.max(np.abs(got[:, :, late] - fixed[:, :, late])) <= 1e-9 * scale
+
+
+def test_gain_sequence_converges_to_abkit_riccati_limit():
+    """Paper 004, Lemma 1: K_k -> the limiting gain of abkit's own Riccati solver."""
+    from abkit import kalman, riccati
+
+    ss_model = abkit.singer.model(1.0, tau=5.0, sigma_m=1.0)
+    Phi, Q = ss_model
+    H = np.array([[1.0, 0.0, 0.0]])
+    R = np.array([[4.0]])
+    lim = riccati.kalman_steady_state(Phi, H, Q, R)
+    K = kalman.gain_sequence(Phi, H, Q, R, np.eye(3) * 50.0, 3000).K[-1]
+    assert np.allclose(K, lim.K, rtol=1e-10, atol=1e-13)

@@ -210,6 +210,13 @@ class FixedGainFilter:
     allow_unstable : bool, optional
         Accept gains whose closed loop ``(I - K H) Phi`` has a spectral radius
         >= 1 (otherwise a ``ValueError``).
+    transient : {None, "kalman"}, optional
+        ``"kalman"``: exact start with the time-varying Kalman filter of the
+        model ``(Q, R)`` from the prior ``(x0, P0)`` (default: zero and a
+        diffuse ``1e12 R``); ``K`` must be its limiting gain (e.g. a Singer
+        design from :func:`abkit.singer.steady_state`). See ``run``'s Notes.
+    P0, Q, R, x0 : array_like, optional
+        Prior and model for ``transient="kalman"``.
 
     Notes
     -----
@@ -228,7 +235,20 @@ class FixedGainFilter:
 
     _kinematic = False
 
-    def __init__(self, Phi: Any, H: Any, K: Any, T: Any = 1.0, *, allow_unstable: bool = False):
+    def __init__(
+        self,
+        Phi: Any,
+        H: Any,
+        K: Any,
+        T: Any = 1.0,
+        *,
+        allow_unstable: bool = False,
+        transient: Optional[str] = None,
+        P0: Any = None,
+        Q: Any = None,
+        R: Any = None,
+        x0: Any = None,
+    ):
         phi = as_float_array("Phi", Phi)
         if phi.ndim not in (2, 3) or phi.shape[-1] != phi.shape[-2]:
             raise ValueError(f"Phi must have shape (n, n) or (n_tracks, n, n), got {phi.shape}")
@@ -271,6 +291,10 @@ class FixedGainFilter:
                 f"K gives an unstable filter{where}: spectral radius of (I - K H) Phi is "
                 f"{float(rho.reshape(-1)[i]):.6g} >= 1; pass allow_unstable=True to run it anyway"
             )
+        if type(self) is FixedGainFilter:
+            self._set_transient(transient, P0, Q, R, x0)
+        elif transient is not None:
+            raise ValueError("internal: subclasses configure transient themselves")
 
     # -- model ---------------------------------------------------------------
     @property
