@@ -152,3 +152,40 @@ def test_design_abg_sources() -> None:
 def test_design_abg_errors_exit_2(args: list, needle: str) -> None:
     out = run("design", "abg", *args)
     assert out.returncode == 2 and needle in out.stderr
+
+
+@pytest.mark.parametrize("sigma_vel", [None, 1.0])
+def test_design_singer_json_matches_scipy(sigma_vel) -> None:
+    """`abkit design singer --json`: the gain equals the Kalman gain from
+    scipy's DARE for the Singer model built here with Van Loan's method
+    (rtol 1e-8)."""
+    import numpy as np
+    import scipy.linalg as sl
+
+    T, tau, sm, sp = 1.0, 10.0, 2.0, 5.0
+    args = ["design", "singer", "-T", str(T), "--tau", str(tau), "--sigma-m", str(sm), "--sigma-pos", str(sp), "--json"]
+    if sigma_vel is not None:
+        args += ["--sigma-vel", str(sigma_vel)]
+    out = run(*args)
+    assert out.returncode == 0, out.stderr
+    d = json.loads(out.stdout)
+    a = 1.0 / tau
+    A = np.array([[0, 1, 0], [0, 0, 1], [0, 0, -a]])
+    Qc = np.zeros((3, 3))
+    Qc[2, 2] = 2 * a * sm**2
+    M = sl.expm(np.block([[-A, Qc], [np.zeros((3, 3)), A.T]]) * T)
+    Phi = M[3:, 3:].T
+    Q = Phi @ M[:3, 3:]
+    H = np.eye(3)[:1] if sigma_vel is None else np.eye(3)[:2]
+    R = np.diag([sp**2] + ([] if sigma_vel is None else [sigma_vel**2]))
+    P = sl.solve_discrete_are(Phi.T, H.T, Q, R)
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+    np.testing.assert_allclose(np.array(d["K"]), K, rtol=1e-8, atol=1e-12)
+    assert d["method_used"] in ("closed-form", "numeric")
+
+
+def test_design_singer_errors() -> None:
+    out = run("design", "singer", "-T", "-1", "--tau", "10", "--sigma-m", "2", "--sigma-pos", "5")
+    assert out.returncode == 2 and "T" in out.stderr and "Traceback" not in out.stderr
+    out = run("design", "singer", "--tau", "10")
+    assert out.returncode == 2

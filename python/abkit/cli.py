@@ -5,6 +5,7 @@ Commands
 abkit design alphabeta ...
     Design or analyse an alpha-beta filter and print it as a table (or JSON).
 abkit design abg ...
+abkit design singer ...
     Near-optimal alpha-beta-gamma design (Chen & Chui) from the noise or the
     tracking index, or analysis of given gains.
 abkit demo
@@ -37,6 +38,52 @@ _SOURCES = (
     ("natural_frequency", ("omega_n", "T")),
     ("gains", ("alpha", "beta")),
 )
+
+
+def _design_singer(a: argparse.Namespace) -> int:
+    import numpy as np
+
+    from . import singer
+
+    try:
+        r = singer.steady_state(a.T, a.tau, a.sigma_m, a.sigma_pos, a.sigma_vel, method=a.method)
+    except (ValueError, TypeError, ArithmeticError) as exc:
+        print(f"abkit design singer: error: {exc}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # numpy.linalg.LinAlgError: no stabilising solution
+        print(f"abkit design singer: error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+
+    def conv(x: object) -> object:
+        arr = np.asarray(x)
+        if np.iscomplexobj(arr):
+            return conv(np.stack([arr.real, arr.imag], axis=-1))
+        if arr.dtype.kind in "fc":
+            return [conv(v) for v in arr] if arr.ndim else (float(arr) if np.isfinite(arr) else None)
+        return arr.tolist()
+
+    fields = ["method_used", "K", "P_pred", "P_filt", "P_smooth", "eigenvalues", "rms_position", "rms_velocity",
+              "rms_acceleration", "Phi", "Q", "H", "R"]
+    if a.sigma_vel is None:
+        fields += ["alpha", "beta", "gamma"]
+    d = {"T": a.T, "tau": a.tau, "sigma_m": a.sigma_m, "sigma_pos": a.sigma_pos, "sigma_vel": a.sigma_vel}
+    d.update({f: conv(getattr(r, f)) if f != "method_used" else str(r.method_used) for f in fields})
+    if a.json:
+        print(json.dumps(d, indent=2, allow_nan=False))
+        return 0
+    meas = "position only" if a.sigma_vel is None else f"position + velocity (sigma_vel={a.sigma_vel:g})"
+    print(f"Singer (ECA) steady-state Kalman filter: T={a.T:g}, tau={a.tau:g}, sigma_m={a.sigma_m:g}, "
+          f"sigma_pos={a.sigma_pos:g}, {meas}  [{r.method_used}]")
+    with np.printoptions(precision=6, suppress=False, linewidth=100):
+        print("  gain K (filter form):\n" + "\n".join("    " + ln for ln in str(np.asarray(r.K)).splitlines()))
+        print("  rms prediction error: position {:.6g}, velocity {:.6g}, acceleration {:.6g}".format(
+            float(np.sqrt(r.P_pred[0, 0])), float(np.sqrt(r.P_pred[1, 1])), float(np.sqrt(r.P_pred[2, 2]))))
+        print("  rms filtered error:   position {:.6g}, velocity {:.6g}, acceleration {:.6g}".format(
+            float(np.sqrt(r.P_filt[0, 0])), float(np.sqrt(r.P_filt[1, 1])), float(np.sqrt(r.P_filt[2, 2]))))
+        print("  Hamiltonian eigenvalues outside the unit circle: " + ", ".join(f"{complex(e):.6g}" for e in np.ravel(r.eigenvalues)))
+        if a.sigma_vel is None:
+            print(f"  equivalent alpha-beta-gamma gains: alpha={float(r.alpha):.6g}, beta={float(r.beta):.6g}, gamma={float(r.gamma):.6g}")
+    return 0
 
 
 def _positive_int(text: str) -> int:
@@ -294,6 +341,21 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--json", action="store_true", help="print JSON instead of a table")
     g.set_defaults(func=lambda a: _design_abg(g, a))
 
+    sg = dsub.add_parser(
+        "singer",
+        help="steady-state Kalman filter of the Singer (exponentially correlated acceleration) model",
+        description="Steady state of the Singer-model Kalman filter (Yoon & Hong closed form with a "
+        "numeric fallback): gain, prediction/filtered covariances, Hamiltonian eigenvalues.",
+    )
+    sg.add_argument("-T", "--period", dest="T", type=float, required=True, help="sampling period (s)")
+    sg.add_argument("--tau", type=float, required=True, help="manoeuvre time constant (s); inf for constant acceleration")
+    sg.add_argument("--sigma-m", type=float, required=True, help="rms manoeuvre acceleration")
+    sg.add_argument("--sigma-pos", type=float, required=True, help="position measurement noise std")
+    sg.add_argument("--sigma-vel", type=float, default=None, help="velocity measurement noise std (omit: position only)")
+    sg.add_argument("--method", choices=["auto", "closed-form", "numeric"], default="auto")
+    sg.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    sg.set_defaults(func=_design_singer)
+
     dm = sub.add_parser(
         "demo",
         help="the paper's GPS car example: design, nomograph, and a simulated fleet filtered and smoothed",
@@ -317,7 +379,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args: List[str] = list(sys.argv[1:] if argv is None else argv)
     p = _parser()
     ns = p.parse_args(args)
-    return int(ns.func(ns))
+    try:
+        return int(ns.func(ns))
+    except BrokenPipeError:  # e.g. `abkit design ... --json | head`
+        import os
+
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
