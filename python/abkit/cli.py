@@ -82,7 +82,7 @@ def _design_singer(a: argparse.Namespace) -> int:
             float(np.sqrt(r.P_filt[0, 0])), float(np.sqrt(r.P_filt[1, 1])), float(np.sqrt(r.P_filt[2, 2]))))
         print("  Hamiltonian eigenvalues outside the unit circle: " + ", ".join(f"{complex(e):.6g}" for e in np.ravel(r.eigenvalues)))
         if a.sigma_vel is None:
-            print(f"  equivalent alpha-beta-gamma gains: alpha={float(r.alpha):.6g}, beta={float(r.beta):.6g}, gamma={float(r.gamma):.6g}")
+            print(f"  equivalent alpha-beta-gamma gains: alpha={float(np.asarray(r.alpha)):.6g}, beta={float(np.asarray(r.beta)):.6g}, gamma={float(np.asarray(r.gamma)):.6g}")
     return 0
 
 
