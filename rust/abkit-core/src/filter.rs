@@ -213,7 +213,7 @@ impl<'a, T: IoFloat> Measurements<'a, T> {
     /// Row `i` as a contiguous slice (sample-major, `n_samples * m`
     /// elements) when the track's measurements are adjacent in memory.
     #[inline]
-    fn row(&self, i: usize) -> Option<&'a [T]> {
+    pub(crate) fn row(&self, i: usize) -> Option<&'a [T]> {
         if self.s_sample == self.m as isize && (self.m == 1 || self.s_comp == 1) {
             let start = (self.base as isize + i as isize * self.s_track) as usize;
             self.data.get(start..start + self.n_samples * self.m)
@@ -956,6 +956,30 @@ pub fn run_batch<T: IoFloat, const N: usize>(
     group_size: usize,
     group: impl Fn(&mut [Job<'_, T, N>]) + Sync + Send,
 ) -> Result<()> {
+    run_batch_cols(
+        n_tracks, n_samples, m, 0, states, out, resid, parallel, group_size, group,
+    )
+}
+
+/// [`run_batch`] over the samples `col0..n_samples` only: the jobs' output
+/// rows start at sample `col0` of the `(N, n_tracks, n_samples)` buffer.
+pub fn run_batch_cols<T: IoFloat, const N: usize>(
+    n_tracks: usize,
+    n_samples: usize,
+    m: usize,
+    col0: usize,
+    states: &mut [TrackState],
+    out: &mut [T],
+    resid: Option<&mut [T]>,
+    parallel: bool,
+    group_size: usize,
+    group: impl Fn(&mut [Job<'_, T, N>]) + Sync + Send,
+) -> Result<()> {
+    if col0 > n_samples {
+        return Err(Error::Shape(format!(
+            "first column {col0} > {n_samples} samples"
+        )));
+    }
     let per = n_tracks * n_samples;
     if states.len() != n_tracks || out.len() != N * per {
         return Err(Error::Shape(format!(
@@ -989,7 +1013,7 @@ pub fn run_batch<T: IoFloat, const N: usize>(
             let mut missing = false;
             let states_arr: [&mut [T]; N] =
                 std::array::from_fn(|c| match comps.get_mut(c).and_then(|it| it.next()) {
-                    Some(row) => row,
+                    Some(row) => &mut row[col0..],
                     None => {
                         missing = true;
                         &mut []
@@ -1000,8 +1024,9 @@ pub fn run_batch<T: IoFloat, const N: usize>(
             }
             let r = match resid_rows.as_mut() {
                 Some(it) => Some(
-                    it.next()
-                        .ok_or_else(|| Error::Shape("residual rows".into()))?,
+                    &mut it
+                        .next()
+                        .ok_or_else(|| Error::Shape("residual rows".into()))?[col0 * m..],
                 ),
                 None => None,
             };
@@ -1326,22 +1351,46 @@ pub fn filter_general<T: IoFloat, const N: usize, const M: usize>(
     parallel: bool,
     smoother: Option<Smoother<'_, N>>,
 ) -> Result<()> {
-    check_params(gains.len(), z)?;
-    if let Some(sm) = &smoother {
-        check_params(sm.a.len(), z)?;
-    }
-    if z.m != M {
-        return Err(Error::Shape(format!(
-            "measurement dimension {} != {M}",
-            z.m
-        )));
-    }
-    z.validate()?;
-    let consts: Vec<GenConst<N, M>> = gains.iter().map(GenConst::new).collect();
-    run_batch::<T, N>(
-        z.n_tracks,
+    general_cols(
+        gains,
+        init,
+        z,
         z.n_samples,
+        0,
+        states,
+        out,
+        resid,
+        parallel,
+        smoother,
+    )
+}
+
+/// The general kernel over a column block: `z` views samples
+/// `col0..n_full` of the batch, whose output buffer is `(N, n_tracks,
+/// n_full)`. Used to continue a time-varying filter with its limiting gain.
+pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
+    gains: &[Gains<N, M>],
+    init: Init,
+    z: &Measurements<'_, T>,
+    n_full: usize,
+    col0: usize,
+    states: &mut [TrackState],
+    out: &mut [T],
+    resid: Option<&mut [T]>,
+    parallel: bool,
+    smoother: Option<Smoother<'_, N>>,
+) -> Result<()> {
+    if col0 + z.n_samples != n_full {
+        return Err(Error::Shape(
+            "column block does not end at the last sample".into(),
+        ));
+    }
+    let consts: Vec<GenConst<N, M>> = gains.iter().map(GenConst::new).collect();
+    run_batch_cols::<T, N>(
+        z.n_tracks,
+        n_full,
         M,
+        col0,
         states,
         out,
         resid,

@@ -195,74 +195,153 @@ pub fn run_batch<T: IoFloat, const N: usize, const M: usize>(
         p = project(m, &pp);
     }
     let n_shared = gains.len();
-    crate::filter::run_batch::<T, N>(nt, n, M, &mut states, out, resid, parallel, 1, |group| {
-        for (i, _, o) in group.iter_mut() {
-            let i = *i;
-            let zk = |k: usize| -> [f64; M] { std::array::from_fn(|j| z.at(i, k, j)) };
-            let has_nan = (0..n).any(|k| zk(k).iter().any(|v| v.is_nan()));
-            let mut x = x0[if x0.len() == 1 { 0 } else { i }];
-            if !has_nan {
-                for k in 0..n {
+    // The shared gains converged before the end: the rest is fixed-gain
+    // filtering with the limiting gain, run by the batch engine's kernel.
+    let k_end = if n_shared < n { n_shared } else { n };
+    // Which tracks miss samples (they need their own covariance recursion).
+    let scan = |i: usize| match z.row(i) {
+        Some(r) => r.iter().any(|v| v.to_f64().is_nan()),
+        None => (0..n).any(|k| (0..M).any(|j| z.at(i, k, j).is_nan())),
+    };
+    let nan_rows: Vec<bool> = if parallel {
+        (0..nt).into_par_iter().map(scan).collect()
+    } else {
+        (0..nt).map(scan).collect()
+    };
+    let has_nan = |i: usize| nan_rows[i];
+    let own_recursion = |i: usize, o: &mut TrackOut<'_, T, N>| {
+        let zk = |k: usize| -> [f64; M] { std::array::from_fn(|j| z.at(i, k, j)) };
+        let mut x = x0[if x0.len() == 1 { 0 } else { i }];
+        let mut p = *p0;
+        for k in 0..n {
+            if k > 0 {
+                x = predict(&m.phi, &x);
+                p = project(m, &p);
+            }
+            let z_k = zk(k);
+            if z_k.iter().all(|v| !v.is_nan()) {
+                // The shared model already passed the SPD check at least
+                // once; a failure here leaves the prior.
+                if let Ok((g, pp)) = update(m, &p) {
+                    let (xn, e) = step(&m.phi, &m.h, Some(&g), &x, &z_k);
+                    x = xn;
+                    p = pp;
+                    write(o, k, &x, &e);
+                    continue;
+                }
+            }
+            let (xn, e) = step(&m.phi, &m.h, None, &x, &z_k);
+            x = xn;
+            write(o, k, &x, &e);
+        }
+    };
+    let mut resid = resid;
+    crate::filter::run_batch::<T, N>(
+        nt,
+        n,
+        M,
+        &mut states,
+        out,
+        resid.as_deref_mut(),
+        parallel,
+        1,
+        |group| {
+            for (i, st, o) in group.iter_mut() {
+                let i = *i;
+                if has_nan(i) {
+                    own_recursion(i, o);
+                    continue;
+                }
+                let zk = |k: usize| -> [f64; M] { std::array::from_fn(|j| z.at(i, k, j)) };
+                let mut x = x0[if x0.len() == 1 { 0 } else { i }];
+                for k in 0..k_end {
                     if k > 0 {
                         x = predict(&m.phi, &x);
                     }
-                    let g = &gains[k.min(n_shared - 1)];
-                    let (xn, e) = step(&m.phi, &m.h, Some(g), &x, &zk(k));
+                    let (xn, e) = step(&m.phi, &m.h, Some(&gains[k]), &x, &zk(k));
                     x = xn;
                     write(o, k, &x, &e);
                 }
-            } else {
-                let mut p = *p0;
-                for k in 0..n {
-                    if k > 0 {
-                        x = predict(&m.phi, &x);
-                        p = project(m, &p);
-                    }
-                    let z_k = zk(k);
-                    if z_k.iter().all(|v| !v.is_nan()) {
-                        // The shared model already passed the SPD check at
-                        // least once; a failure here leaves the prior.
-                        if let Ok((g, pp)) = update(m, &p) {
-                            let (xn, e) = step(&m.phi, &m.h, Some(&g), &x, &z_k);
-                            x = xn;
-                            p = pp;
-                            write(o, k, &x, &e);
-                            continue;
+                st.x[..N].copy_from_slice(&x);
+                st.phase = 2.0;
+            }
+        },
+    )?;
+    if k_end < n {
+        let g_inf = crate::filter::Gains::<N, M> {
+            phi: m.phi,
+            h: m.h,
+            k: gains[n_shared - 1],
+            h_pinv: [[0.0; M]; N],
+            t: 1.0,
+        };
+        let tail = Measurements {
+            base: (z.base as isize + k_end as isize * z.s_sample) as usize,
+            n_samples: n - k_end,
+            ..*z
+        };
+        crate::filter::general_cols(
+            &[g_inf],
+            crate::filter::Init::First,
+            &tail,
+            n,
+            k_end,
+            &mut states,
+            out,
+            resid.as_deref_mut(),
+            parallel,
+            None,
+        )?;
+        // Tracks with missed samples ran their own recursion above; the
+        // fixed-gain tail overwrote them, so run them again.
+        if (0..nt).any(has_nan) {
+            crate::filter::run_batch::<T, N>(
+                nt,
+                n,
+                M,
+                &mut states,
+                out,
+                resid,
+                parallel,
+                1,
+                |group| {
+                    for (i, _, o) in group.iter_mut() {
+                        if has_nan(*i) {
+                            own_recursion(*i, o);
                         }
                     }
-                    let (xn, e) = step(&m.phi, &m.h, None, &x, &z_k);
-                    x = xn;
-                    write(o, k, &x, &e);
+                },
+            )?;
+        }
+    }
+    // Final covariances: shared tracks end on the shared sequence; tracks
+    // with missed samples are recomputed (cheap, N x N per sample).
+    let final_cov = |i: usize| {
+        let zk = |k: usize| -> bool { (0..M).any(|j| z.at(i, k, j).is_nan()) };
+        if n == 0 {
+            return *p0;
+        }
+        if !(0..n).any(zk) {
+            return posts[(n - 1).min(n_shared - 1)];
+        }
+        let mut p = *p0;
+        for k in 0..n {
+            if k > 0 {
+                p = project(m, &p);
+            }
+            if !zk(k) {
+                if let Ok((_, pp)) = update(m, &p) {
+                    p = pp;
                 }
             }
         }
-    })?;
-    // Final covariances: shared tracks end on the shared sequence; tracks
-    // with missed samples are recomputed (cheap, N x N per sample).
-    let finals: Vec<Mat<N, N>> = (0..nt)
-        .into_par_iter()
-        .map(|i| {
-            let zk = |k: usize| -> bool { (0..M).any(|j| z.at(i, k, j).is_nan()) };
-            if n == 0 {
-                return *p0;
-            }
-            if !(0..n).any(zk) {
-                return posts[(n - 1).min(n_shared - 1)];
-            }
-            let mut p = *p0;
-            for k in 0..n {
-                if k > 0 {
-                    p = project(m, &p);
-                }
-                if !zk(k) {
-                    if let Ok((_, pp)) = update(m, &p) {
-                        p = pp;
-                    }
-                }
-            }
-            p
-        })
-        .collect();
+        p
+    };
+    let finals: Vec<Mat<N, N>> = if parallel {
+        (0..nt).into_par_iter().map(final_cov).collect()
+    } else {
+        (0..nt).map(final_cov).collect()
+    };
     for (dst, p) in p_final.chunks_exact_mut(N * N).zip(&finals) {
         for r in 0..N {
             dst[r * N..(r + 1) * N].copy_from_slice(&p[r]);
