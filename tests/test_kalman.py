@@ -167,3 +167,27 @@ def test_bad_run_inputs():
         kalman.KalmanFilter(1.0, 1.0, 0.0, 1.0)
     with pytest.raises(ValueError, match="n must"):
         kalman.gain_sequence(1.0, 1.0, 0.0, 1.0, 1.0, -1)
+
+
+@pytest.mark.parametrize("n,m", [(2, 1), (3, 2)])
+def test_long_run_switches_to_the_limiting_gain_exactly(n, m):
+    """3000 samples: the shared gains converge (to the last bit) early and the
+    rest runs in the fixed-gain kernel; tracks with a missed sample keep their
+    own covariance recursion. All equal the NumPy loop to 1e-10 of scale."""
+    F, H, Q, R = model(n, m)
+    g = kalman.gain_sequence(F, H, Q, R, 5.0 * np.eye(n), 3000)
+    assert np.array_equal(g.K[-1], g.K[-2])  # converged: the tail path is used
+    rng = np.random.default_rng(21)
+    nt, ns = 9, 3000
+    z = rng.normal(size=(nt, ns, m)) + np.arange(ns)[None, :, None] * 0.05
+    z[2, 2500] = np.nan  # a miss after convergence: this track's own recursion
+    if m == 1:
+        z = z[..., 0]
+    kf = kalman.KalmanFilter(F, H, Q, R, P0=5.0 * np.eye(n))
+    for threads in (1, None):
+        res = kf.run(z, threads=threads, return_residuals=True)
+        for i in range(nt):
+            xs, es, Pf = ref_loop(F, H, Q, R, np.zeros(n), 5.0 * np.eye(n), z[i])
+            close(res.states[:, i], xs, 1e-10)
+            close(res.residuals[i], es.reshape(res.residuals[i].shape), 1e-10)
+            close(res.P_final[i], Pf, 1e-10)
