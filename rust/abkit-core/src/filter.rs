@@ -861,21 +861,17 @@ fn ab_group<T: IoFloat, const FMA: bool>(
         x[l] = st.x[0];
         v[l] = st.x[1];
     }
-    let (xs, vs): (Vec<&mut [T]>, Vec<&mut [T]>) = group
-        .iter_mut()
-        .map(|(_, _, o)| {
-            let [a, b] = &mut o.states;
-            (&mut **a, &mut **b)
-        })
-        .unzip();
-    if let (Ok(xs), Ok(vs)) = (
-        <[&mut [T]; AB_LANES]>::try_from(xs),
-        <[&mut [T]; AB_LANES]>::try_from(vs),
-    ) {
-        let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
-            .then(|| (AB_LANES * z.s_track as usize, AB_LANES * n));
-        ab_lanes::<T, FMA>(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead);
+    // Output rows of the lanes, without allocating (the group is full here).
+    let mut xs: [&mut [T]; AB_LANES] = std::array::from_fn(|_| -> &mut [T] { &mut [] });
+    let mut vs: [&mut [T]; AB_LANES] = std::array::from_fn(|_| -> &mut [T] { &mut [] });
+    for (l, (_, _, o)) in group.iter_mut().enumerate().take(AB_LANES) {
+        let [a, b] = &mut o.states;
+        xs[l] = &mut **a;
+        vs[l] = &mut **b;
     }
+    let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
+        .then(|| (AB_LANES * z.s_track as usize, AB_LANES * n));
+    ab_lanes::<T, FMA>(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead);
     for (l, (_, st, _)) in group.iter_mut().enumerate() {
         st.x[0] = x[l];
         st.x[1] = v[l];
