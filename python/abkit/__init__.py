@@ -21,7 +21,8 @@ singer
     The Singer (exponentially correlated acceleration) model and the steady
     state of its Kalman filter (Yoon & Hong).
 plot
-    Figures (the design nomograph); needs ``abkit[plot]``.
+    Figures (the design nomograph, the Singer error curves); needs
+    ``abkit[plot]``.
 """
 
 from . import abg, alphabeta, filters, kalman, riccati, singer
@@ -35,6 +36,7 @@ from .filters import (
     FixedGainFilter,
     Tracker,
 )
+from .kalman import KalmanFilter
 
 __all__ = [
     "abg",
@@ -49,6 +51,7 @@ __all__ = [
     "FilterResult",
     "FilterState",
     "FixedGainFilter",
+    "KalmanFilter",
     "Tracker",
     "__version__",
 ]
