@@ -54,12 +54,12 @@ References
 from __future__ import annotations
 
 import math
-import re
 from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
 from . import _abkit
+from ._results import FloatOrArray, RowResult, call_binding, out_value
 from ._validate import as_float_array, broadcast
 from .filters import ABG_CONVENTIONS
 
@@ -90,7 +90,6 @@ __all__ = [
 CONVENTIONS = ABG_CONVENTIONS
 
 ArrayLike = Any
-FloatOrArray = Union[float, np.ndarray]
 
 _FIELDS = tuple(_abkit.ABG_FIELDS)
 _IDX = {name: i for i, name in enumerate(_FIELDS)}
@@ -141,8 +140,7 @@ class Lag(NamedTuple):
     acceleration_predicted: FloatOrArray
 
 
-def _out(x: np.ndarray) -> FloatOrArray:
-    return x.item() if x.ndim == 0 else x
+_out = out_value
 
 
 def _check_convention(name: str, convention: str) -> float:
@@ -151,17 +149,7 @@ def _check_convention(name: str, convention: str) -> float:
     return float(CONVENTIONS[convention])
 
 
-def _call(func: Any, shape: Tuple[int, ...], *flat: Any) -> np.ndarray:
-    """Call a Rust binding; restate its flat element index in the broadcast shape."""
-    try:
-        return np.asarray(func(*flat))
-    except (ValueError, np.linalg.LinAlgError) as exc:
-        msg = str(exc)
-        m = re.search(r" \(at flat index (\d+)\)$", msg)
-        if m is None:
-            raise
-        where = "" if shape == () else f" (at index {tuple(int(i) for i in np.unravel_index(int(m.group(1)), shape))})"
-        raise type(exc)(msg[: m.start()] + where) from None
+_call = call_binding
 
 
 def _prepare(names: Tuple[str, ...], values: Tuple[Any, ...]) -> Tuple[Tuple[int, ...], list]:
@@ -303,7 +291,7 @@ def from_predictor(K: ArrayLike, h: ArrayLike = 1.0, *, convention: str = "chen-
     return Gains(_out(np.asarray(w0 + 0.0)), _out(np.asarray(w1 * t)), _out(np.asarray(g)))
 
 
-class ABG:
+class ABG(RowResult):
     """An alpha-beta-gamma design or analysis (steady state).
 
     Created by :func:`from_noise`, :func:`from_tracking_index` and
@@ -346,29 +334,14 @@ class ABG:
     Steady-state quantities of an unstable filter are ``inf``.
     """
 
-    __slots__ = ("_rows", "_shape", "h", "convention", "design")
+    __slots__ = ("h", "convention", "design")
+    _IDX = _IDX
 
     def __init__(self, rows: np.ndarray, shape: Tuple[int, ...], h: Optional[float], convention: str, design: str):
-        self._rows = rows
-        self._shape = shape
+        super().__init__(rows, shape)
         self.h = h
         self.convention = convention
         self.design = design
-
-    def _raw(self, name: str) -> np.ndarray:
-        return self._rows[:, _IDX[name]].reshape(self._shape)
-
-    def _get(self, name: str) -> FloatOrArray:
-        return _out(self._raw(name).copy())
-
-    def _flag(self, name: str) -> Union[bool, np.ndarray]:
-        x = self._raw(name) != 0.0
-        return bool(x) if x.ndim == 0 else x
-
-    @property
-    def shape(self) -> Tuple[int, ...]:
-        """Broadcast shape of the inputs (``()`` for scalars)."""
-        return self._shape
 
     @property
     def alpha(self) -> FloatOrArray:

@@ -43,12 +43,12 @@ References
 from __future__ import annotations
 
 import math
-import re
 from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
 from . import _abkit
+from ._results import FloatOrArray, RowResult, call_binding, out_value
 from ._validate import (
     as_float_array,
     broadcast,
@@ -77,7 +77,6 @@ __all__ = [
 KALMAN_DAMPING = 1.0 / math.sqrt(2.0)
 
 ArrayLike = Any
-FloatOrArray = Union[float, np.ndarray]
 
 _FIELDS = tuple(_abkit.ALPHABETA_FIELDS)
 _IDX = {name: i for i, name in enumerate(_FIELDS)}
@@ -124,11 +123,10 @@ def _sym(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     return out
 
 
-def _out(x: np.ndarray) -> FloatOrArray:
-    return x.item() if x.ndim == 0 else x
+_out = out_value
 
 
-class AlphaBeta:
+class AlphaBeta(RowResult):
     """An alpha-beta filter design and its steady-state analysis.
 
     Created by the constructors of :mod:`abkit.alphabeta`, never directly.
@@ -191,30 +189,15 @@ class AlphaBeta:
     Steady-state quantities of an unstable filter are ``inf``.
     """
 
-    __slots__ = ("_rows", "_shape", "T", "design")
+    __slots__ = ("T", "design")
+    _IDX = _IDX
 
     def __init__(self, rows: np.ndarray, shape: Tuple[int, ...], T: Optional[float], design: str):
-        self._rows = rows
-        self._shape = shape
+        super().__init__(rows, shape)
         self.T = T
         self.design = design
 
-    # -- field access -----------------------------------------------------
-    def _raw(self, name: str) -> np.ndarray:
-        return self._rows[:, _IDX[name]].reshape(self._shape)
-
-    def _get(self, name: str) -> FloatOrArray:
-        return _out(self._raw(name).copy())
-
-    def _flag(self, name: str) -> Union[bool, np.ndarray]:
-        x = self._raw(name) != 0.0
-        return bool(x) if x.ndim == 0 else x
-
-    @property
-    def shape(self) -> Tuple[int, ...]:
-        """Broadcast shape of the inputs (``()`` for scalars)."""
-        return self._shape
-
+    # -- fields -------------------------------------------------------------
     @property
     def alpha(self) -> FloatOrArray:
         return self._get("alpha")
@@ -474,17 +457,7 @@ _PUBLIC = (
 )
 
 
-def _call(func: Any, shape: Tuple[int, ...], *flat: np.ndarray) -> np.ndarray:
-    """Call a Rust binding; restate its flat element index in the broadcast shape."""
-    try:
-        return np.asarray(func(*flat))
-    except ValueError as exc:
-        msg = str(exc)
-        m = re.search(r" \(at flat index (\d+)\)$", msg)
-        if m is None:
-            raise
-        where = "" if shape == () else f" (at index {tuple(int(i) for i in np.unravel_index(int(m.group(1)), shape))})"
-        raise ValueError(msg[: m.start()] + where) from None
+_call = call_binding
 
 
 def _run(func: Any, names: Tuple[str, ...], values: Tuple[Any, ...], checks: Dict[str, str], T: Any = None, design: str = "") -> AlphaBeta:

@@ -55,6 +55,7 @@ from typing import Any, Optional, Tuple, Union
 import numpy as np
 
 from . import _abkit
+from ._results import out_value
 from ._validate import as_float_array, broadcast, check_positive
 
 __all__ = ["model", "steady_state", "SingerSteadyState", "METHODS"]
@@ -236,8 +237,7 @@ class SingerSteadyState:
         return f"SingerSteadyState(shape={np.shape(self.theta)}, method_used={self.method_used!r})"
 
 
-def _out(x: np.ndarray) -> FloatOrArray:
-    return x.item() if x.ndim == 0 else x
+_out = out_value
 
 
 def steady_state(
