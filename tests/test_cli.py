@@ -268,3 +268,45 @@ def test_design_singer_errors() -> None:
     assert out.returncode == 2 and "T" in out.stderr and "Traceback" not in out.stderr
     out = run("design", "singer", "--tau", "10")
     assert out.returncode == 2
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_bench_runs_and_prints_the_table(dtype: str) -> None:
+    """`abkit bench` at a tiny size: every method is checked against abkit
+    inside the command (it fails otherwise); the table lists them all. No
+    timing assertions."""
+    out = run("bench", "--tracks", "3", "--samples", "40", "--repeat", "1", "--dtype", dtype)
+    assert out.returncode == 0, out.stderr
+    for name in ("abkit, all cores", "abkit, 1 thread", "ceiling", "NumPy vectorised", "scipy.signal.lfilter", "pure Python loop"):
+        assert name in out.stdout, name
+    assert "M samples/s" in out.stdout and "of the memory-bandwidth ceiling" in out.stdout
+    diffs = [float(ln.split()[-1]) for ln in out.stdout.splitlines() if ln.startswith(("NumPy", "scipy"))]
+    assert len(diffs) == 2 and max(diffs) < (1e-9 if dtype == "float64" else 2e-3)
+
+
+def test_bench_lfilter_coefficients_match_the_recursion() -> None:
+    """The transfer functions the benchmark gives lfilter reproduce a plain
+    alpha-beta loop from the zero state (rtol 1e-12)."""
+    import numpy as np
+    import scipy.signal
+
+    from abkit import _cli_bench
+
+    z = np.random.default_rng(5).normal(size=200).cumsum()
+    bx, bv, den = _cli_bench._lfilter_coeffs()
+    a, b, T = _cli_bench.ALPHA, _cli_bench.BETA, _cli_bench.T
+    x = v = 0.0
+    px, pv = [], []
+    for zk in z:
+        xp = x + T * v
+        x, v = xp + a * (zk - xp), v + b / T * (zk - xp)
+        px.append(x)
+        pv.append(v)
+    np.testing.assert_allclose(scipy.signal.lfilter(bx, den, z), px, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(scipy.signal.lfilter(bv, den, z), pv, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("args", [["--tracks", "0"], ["--dtype", "int8"], ["--repeat", "x"]])
+def test_bench_bad_flags(args: list) -> None:
+    out = run("bench", *args)
+    assert out.returncode == 2 and "Traceback" not in out.stderr

@@ -13,6 +13,9 @@ abkit demo
     alpha-beta-gamma and Singer filters designed from the scenario's noise:
     empirical vs theoretical errors, throughput, a figure
     (``_cli_demo.py``).
+abkit bench
+    abkit's alpha-beta filter against NumPy, scipy.signal.lfilter and pure
+    Python, and the memory-bandwidth ceiling (``_cli_bench.py``).
 """
 
 from __future__ import annotations
@@ -267,6 +270,10 @@ def _parser() -> argparse.ArgumentParser:
     from . import _cli_demo
 
     _cli_demo.add_parser(sub, _positive_int, _fraction)
+
+    from . import _cli_bench
+
+    _cli_bench.add_parser(sub, _positive_int)
     return p
 
 
