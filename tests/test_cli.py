@@ -310,3 +310,14 @@ def test_bench_lfilter_coefficients_match_the_recursion() -> None:
 def test_bench_bad_flags(args: list) -> None:
     out = run("bench", *args)
     assert out.returncode == 2 and "Traceback" not in out.stderr
+
+
+def test_bench_without_scipy_says_so() -> None:
+    code = (
+        "import sys; sys.modules['scipy'] = None\n"
+        "from abkit.cli import main\n"
+        "sys.exit(main(['bench', '--tracks', '2', '--samples', '30', '--repeat', '1']))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "scipy not installed" in out.stdout and "NumPy vectorised" in out.stdout

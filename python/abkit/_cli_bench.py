@@ -181,12 +181,12 @@ def _bench(a: argparse.Namespace) -> int:
     t_ceiling = rows[2][1]
     assert t_ceiling is not None
     print(f"{'method':<34}{'M samples/s':>13}{'time / abkit':>14}{'max rel diff':>14}  note")
-    for name, t, err, note in rows:
-        if t is None:
+    for name, tm, diff, note in rows:
+        if tm is None:
             print(f"{name:<34}{'-':>13}{'-':>14}{'-':>14}  {note}")
             continue
-        e = "-" if err is None else f"{err:.1e}"
-        print(f"{name:<34}{1e-6 / t:>13.4g}{t / t_ab:>13.3g}x{e:>14}  {note}")
+        e = "-" if diff is None else f"{diff:.1e}"
+        print(f"{name:<34}{1e-6 / tm:>13.4g}{tm / t_ab:>13.3g}x{e:>14}  {note}")
     print(f"abkit runs at {t_ceiling / t_ab:.0%} of the memory-bandwidth ceiling (a copy pass moving the same bytes"
           f"{'; above 100%: this NumPy copy is not a tuned ceiling, see bench/run.py' if t_ceiling > t_ab else ''}).")
     print("Ratios are from this run on this machine; the full cross-language benchmark (C, numba, Rust) "
