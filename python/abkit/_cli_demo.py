@@ -162,7 +162,7 @@ def _demo(a: argparse.Namespace) -> int:
     edge = slice(warm, n_samples - warm) if n_samples > 2 * warm else slice(warm, None)
     nf = len(filters)
     sse = np.zeros((nf, 2, 2))  # filter, (filtered, smoothed), (pos, vel)
-    cnt = np.zeros((nf, 2))
+    cnt = np.zeros((nf, 2, 2))
     curve = np.zeros((nf, 2, n_samples))  # squared error per sample: filtered position, velocity
     t_run = np.zeros(nf)
     t_smooth = np.zeros(nf)
@@ -189,9 +189,9 @@ def _demo(a: argparse.Namespace) -> int:
                     es = sm.states[j][:, edge] - truth[j][:, edge]
                     sse[i, 0, j] += float(np.nansum(ef * ef))
                     sse[i, 1, j] += float(np.nansum(es * es))
+                    cnt[i, 0, j] += np.count_nonzero(~np.isnan(ef))
+                    cnt[i, 1, j] += np.count_nonzero(~np.isnan(es))
                     curve[i, j] += np.nansum((res.states[j] - truth[j]) ** 2, axis=0)
-                cnt[i, 0] += np.count_nonzero(~np.isnan(res.states[0][:, warm:]))
-                cnt[i, 1] += np.count_nonzero(~np.isnan(sm.states[0][:, edge]))
                 if start == 0:
                     keep[name] = (res.states[:2, :2].copy(), sm.states[:2, :2].copy())
             if start == 0:
@@ -212,7 +212,7 @@ def _demo(a: argparse.Namespace) -> int:
         matched = name == "Singer"
         for kind in range(2):
             for j, (qname, unit) in enumerate((("position", "m"), ("velocity", "m/s"))):
-                emp = math.sqrt(sse[i, kind, j] / max(cnt[i, kind], 1))
+                emp = math.sqrt(sse[i, kind, j] / cnt[i, kind, j]) if cnt[i, kind, j] else float("nan")
                 if kind == 0:
                     th_t = math.sqrt(p_true[j, j]) if p_true is not None else float("nan")
                     th_d = math.sqrt(cov_d.filtered[j, j])
@@ -224,11 +224,14 @@ def _demo(a: argparse.Namespace) -> int:
                 rows_out.append((label, emp, th_t, th_d))
                 tt = f"{th_t:>11.4g}" if math.isfinite(th_t) else f"{'-':>11}"
                 td = f"{th_d:>11.4g}" if math.isfinite(th_d) else f"{'-':>11}"
-                print(f"{label:<42}{emp:>11.4g}{tt}{td}")
+                te = f"{emp:>11.4g}" if math.isfinite(emp) else f"{'-':>11}"
+                print(f"{label:<42}{te}{tt}{td}")
     print("  theory (truth): exact steady state under the true Singer model (filtered; smoothed only where")
     print("    the filter's model is the truth). theory (design): under the filter's own design model --")
     print("    alpha-beta and alpha-beta-gamma are MISMATCHED (their models are not the Singer truth), so")
     print("    their design-model values are not what they achieve; the Singer filter's model matches.")
+    if not cnt.all():
+        print(f"  '-' in the empirical column: no samples after the {warm}-sample start-up (use more --samples).")
     if missed > 0:
         print(f"  Theory assumes every detection; {missed:.0%} missed detections raise the empirical values a little.")
     n = float(n_rows) * n_samples
