@@ -132,7 +132,7 @@ def test_lanes_large_output_streamed():
 
 def test_vector_lanes_equal_scalar_lanes_bitwise(tmp_path):
     # The same batch in a process with the AVX-512 lanes switched off
-    # (ABKIT_DISABLE_AVX512=1: the scalar lanes) gives the same bits.
+    # (ABKIT_DISABLE_SIMD=1: the scalar lanes) gives the same bits.
     import os
     import subprocess
     import sys
@@ -146,10 +146,11 @@ def test_vector_lanes_equal_scalar_lanes_bitwise(tmp_path):
         "for n in ('float64', 'float32'):\n"
         "    z = np.load(sys.argv[1] + f'/z_{n}.npy')\n"
         "    np.save(sys.argv[1] + f'/s_{n}_' + sys.argv[2] + '.npy', abkit.AlphaBetaFilter(0.45, 0.12, 0.3).run(z).states)\n"
+        "    np.save(sys.argv[1] + f'/g_{n}_' + sys.argv[2] + '.npy', abkit.AlphaBetaGammaFilter(0.45, 0.12, 0.01, 0.3).run(z).states)\n"
     )
-    for tag, env in (("on", {}), ("off", {"ABKIT_DISABLE_AVX512": "1"})):
+    for tag, env in (("on", {}), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
         e = dict(os.environ)
-        e.pop("ABKIT_DISABLE_AVX512", None)
+        e.pop("ABKIT_DISABLE_SIMD", None)
         e.update(env)
         subprocess.run([sys.executable, "-c", code, str(tmp_path), tag], check=True, env=e)
     for n in ("float64", "float32"):
@@ -157,3 +158,75 @@ def test_vector_lanes_equal_scalar_lanes_bitwise(tmp_path):
         off = np.load(tmp_path / f"s_{n}_off.npy")
         assert on.dtype == np.dtype(n)
         assert np.array_equal(on, off, equal_nan=True)
+        on = np.load(tmp_path / f"g_{n}_on.npy")
+        off = np.load(tmp_path / f"g_{n}_off.npy")
+        assert on.shape[0] == 3 and np.array_equal(on, off, equal_nan=True)
+
+
+# ---------------------------------------------------------------------------
+# The general kernel's lanes (4 tracks; AVX2 vectors where available).
+# ---------------------------------------------------------------------------
+from test_filters_compliance import _cv2d, _singer, _singer_m1  # noqa: E402
+from abkit import AlphaBetaGammaFilter, FixedGainFilter  # noqa: E402
+
+GEN_MODELS = {
+    "abg": lambda: (AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5), fr.abg_model(0.5, 0.3, 0.05, 0.5), 1),
+    "singer-m2": lambda: (lambda P, H, K, T: (FixedGainFilter(P, H, K, T), fr.general_model(P, H, K, T), 2))(*_singer()),
+    "singer-m1": lambda: (lambda P, H, K, T: (FixedGainFilter(P, H, K, T), fr.general_model(P, H, K, T), 1))(*_singer_m1()),
+    "cv2d": lambda: (lambda P, H, K, T: (FixedGainFilter(P, H, K, T), fr.general_model(P, H, K, T), 2))(*_cv2d()),
+}
+GEN_CASES = [
+    (name, ntr, n, pat, dt)
+    for name in GEN_MODELS
+    for ntr, n in [(4, 17), (5, 31), (8, 100), (11, 1001)]
+    for pat in ["none", "random", "runs", "mixed"]
+    for dt in [np.float64, np.float32]
+]
+
+
+@pytest.mark.parametrize("name,ntr,n,pattern,dtype", GEN_CASES)
+def test_general_lanes_bit_identical_to_scalar_and_match_reference(name, ntr, n, pattern, dtype):
+    rng = np.random.default_rng(hash((name, ntr, n, pattern)) % 2**32)
+    f, model, m = GEN_MODELS[name]()
+    z = fr.with_nans(rng, fr.kinematic_z(rng, ntr, n, model.T if hasattr(model, "T") else 0.5, m=m), pattern)
+    z = z.astype(dtype)
+    init = "first" if m == 2 else "two-point"
+    lanes = f.run(z, init=init)
+    scalar = f.run(z, init=init, return_residuals=True)
+    assert np.array_equal(lanes.states, scalar.states, equal_nan=True)
+    assert np.array_equal(lanes.state.x, scalar.state.x, equal_nan=True)
+    s, _, _ = fr.run_ref(z, model, init)
+    if dtype == np.float64:
+        fr.assert_states_close(lanes.states, s, RTOL)
+    else:
+        assert_f32_rounded(lanes.states, s)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_general_lanes_per_track_models_and_streaming(dtype):
+    rng = np.random.default_rng(8)
+    ntr, n = 9, 403
+    a = rng.uniform(0.3, 0.8, ntr)
+    b = rng.uniform(0.05, 0.3, ntr)
+    g = rng.uniform(0.001, 0.02, ntr)
+    f = AlphaBetaGammaFilter(a, b, g, rng.uniform(0.1, 2.0, ntr))
+    z = fr.with_nans(rng, fr.kinematic_z(rng, ntr, n, 0.5), "random").astype(dtype)
+    whole = f.run(z)
+    assert np.array_equal(whole.states, f.run(z, return_residuals=True).states, equal_nan=True)
+    parts, st = [], None
+    for lo, hi in [(0, 3), (3, 50), (50, 51), (51, 403)]:
+        r = f.run(z[:, lo:hi], state=st)
+        parts.append(r.states)
+        st = r.state
+    assert np.array_equal(np.concatenate(parts, axis=2), whole.states, equal_nan=True)
+
+
+def test_general_lanes_large_output_streamed():
+    # 3 x 700 x 4000 float64 outputs = 67.2 MB >= 64 MiB: non-temporal stores.
+    rng = np.random.default_rng(4)
+    z = fr.with_nans(rng, fr.kinematic_z(rng, 700, 4000, 0.5), "random")
+    f = AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5)
+    lanes = f.run(z)
+    idx = np.r_[0:5, 301:313, 690:700]
+    scalar = f.run(z[idx], return_residuals=True)
+    assert np.array_equal(lanes.states[:, idx], scalar.states, equal_nan=True)

@@ -1300,6 +1300,16 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     }
     let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
         .then(|| (GEN_LANES * z.s_track as usize, GEN_LANES * n));
+    #[cfg(target_arch = "x86_64")]
+    if FMA && n >= kmax + 64 && simd::avx2_available() && simd::gen_fits::<T>(M) {
+        let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>());
+        // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
+        unsafe { simd::gen_lanes4::<T, N, M>(cs, &mut xs, kmax, n, rows, group, ahead, nt) };
+        for (l, (_, st, _)) in group.iter_mut().enumerate() {
+            st.x[..N].copy_from_slice(&xs[l]);
+        }
+        return;
+    }
     let line = (64 / std::mem::size_of::<T>()).max(1);
     for k in kmax..n {
         if let Some((dz, dout)) = ahead {

@@ -1,5 +1,6 @@
-//! AVX-512 alpha-beta lanes: the eight tracks of an [`AB_LANES`] group in
-//! the eight `f64` slots of one register.
+//! Vector lanes. Alpha-beta (AVX-512): the eight tracks of an [`AB_LANES`]
+//! group in the eight `f64` slots of one register. The general kernel
+//! (AVX2): the four tracks of a [`GEN_LANES`] group (see [`gen_lanes4`]).
 //!
 //! Each lane reads eight consecutive samples of its own track (one vector
 //! load), an 8 x 8 transpose turns the eight rows into eight vectors of "the
@@ -21,18 +22,22 @@ use std::arch::x86_64::*;
 
 const W: usize = 8;
 
-use super::{ab_step, prefetch, AbConst, IoFloat, AB_LANES};
+use super::{ab_step, gen_step, prefetch, AbConst, GenConst, IoFloat, Job, AB_LANES, GEN_LANES};
 
-/// Whether this CPU runs the AVX-512 lanes (checked once). Setting the
-/// environment variable `ABKIT_DISABLE_AVX512` (to anything but `0`) before
-/// the first call turns them off (the scalar lanes give bit-identical
-/// results; the switch exists for comparisons and debugging).
+/// Whether the environment variable `ABKIT_DISABLE_SIMD` (set to anything
+/// but `0` before the first call) turns the vector lanes off. The scalar
+/// lanes give bit-identical results; the switch exists for comparisons and
+/// debugging.
+fn disabled() -> bool {
+    std::env::var_os("ABKIT_DISABLE_SIMD").is_some_and(|v| v != "0")
+}
+
+/// Whether this CPU runs the AVX-512 alpha-beta lanes (checked once).
 pub(super) fn available() -> bool {
     use std::sync::OnceLock;
     static OK: OnceLock<bool> = OnceLock::new();
     *OK.get_or_init(|| {
-        let off = std::env::var_os("ABKIT_DISABLE_AVX512").is_some_and(|v| v != "0");
-        !off && is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("fma")
+        !disabled() && is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("fma")
     })
 }
 
@@ -295,4 +300,262 @@ fn scalar_steps<T: IoFloat>(
 /// for the vector loop to pay).
 pub(super) fn fits<T: 'static>(k0: usize, n: usize) -> bool {
     (is_f64::<T>() || is_f32::<T>()) && n >= k0 + 32
+}
+
+// ---------------------------------------------------------------------------
+// The general kernel: GEN_LANES = 4 tracks in the 4 f64 slots of an AVX2
+// register.
+// ---------------------------------------------------------------------------
+
+/// Whether this CPU runs the AVX2 general lanes (checked once; the same
+/// `ABKIT_DISABLE_SIMD` switch as [`available`]).
+pub(super) fn avx2_available() -> bool {
+    use std::sync::OnceLock;
+    static OK: OnceLock<bool> = OnceLock::new();
+    *OK.get_or_init(|| {
+        !disabled() && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
+    })
+}
+
+/// Four consecutive values at `p`, widened to `f64`.
+///
+/// # Safety
+/// `T` is `f64` or `f32`, `p..p+4` is readable, and AVX is available.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn load4<T: 'static>(p: *const T) -> __m256d {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if is_f64::<T>() {
+            _mm256_loadu_pd(p as *const f64)
+        } else {
+            _mm256_cvtps_pd(_mm_loadu_ps(p as *const f32))
+        }
+    }
+}
+
+/// Store four values at `p`, narrowed to `T` (round to nearest); streamed
+/// past the caches if `nt` (`f64` only).
+///
+/// # Safety
+/// `T` is `f64` or `f32`, `p..p+4` is writable and, if `nt`, aligned to 32
+/// bytes; AVX is available.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn store4<T: 'static>(p: *mut T, v: __m256d, nt: bool) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if is_f64::<T>() {
+            if nt {
+                _mm256_stream_pd(p as *mut f64, v)
+            } else {
+                _mm256_storeu_pd(p as *mut f64, v)
+            }
+        } else {
+            _mm_storeu_ps(p as *mut f32, _mm256_cvtpd_ps(v))
+        }
+    }
+}
+
+/// In-place transpose of the 4 x 4 matrix whose rows are `r`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn transpose4(r: &mut [__m256d; 4]) {
+    let t0 = _mm256_unpacklo_pd(r[0], r[1]);
+    let t1 = _mm256_unpackhi_pd(r[0], r[1]);
+    let t2 = _mm256_unpacklo_pd(r[2], r[3]);
+    let t3 = _mm256_unpackhi_pd(r[2], r[3]);
+    r[0] = _mm256_permute2f128_pd::<0x20>(t0, t2);
+    r[1] = _mm256_permute2f128_pd::<0x20>(t1, t3);
+    r[2] = _mm256_permute2f128_pd::<0x31>(t0, t2);
+    r[3] = _mm256_permute2f128_pd::<0x31>(t1, t3);
+}
+
+/// The four general lanes over samples `k0..n`: `rows[l]` holds lane `l`'s
+/// measurements (`n * M` values, sample-major), `group[l].2.states[i]` its
+/// outputs, `x[l]` its state (updated). Each lane first steps (scalar) to a
+/// sample where its first output row is aligned to a cache line (lanes are
+/// independent tracks, so they may be at different samples); then blocks of
+/// 8 samples: per half-block each lane loads `4 M` consecutive values, 4 x 4
+/// transposes give per-sample vectors across the lanes, the steps run in
+/// vectors (both the update `A x + K z` and the coast `Phi x` are computed,
+/// and blended per lane on "every component valid"), and transposes give
+/// the rows back, stored as whole lines (non-temporal if `nt`, for aligned
+/// `f64` rows). Each slot does exactly the scalar `gen_step` arithmetic (same
+/// FMAs, same order), so results are bit-identical to the scalar lanes.
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA ([`avx2_available`]).
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    k0: usize,
+    n: usize,
+    rows: [&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
+    const L: usize = GEN_LANES;
+    const B: usize = 2 * L;
+    let size = std::mem::size_of::<T>();
+    let ok = gen_fits::<T>(M)
+        && group.len() == L
+        && rows.iter().all(|r| r.len() >= n * M)
+        && group
+            .iter()
+            .all(|j| j.2.states.iter().all(|s| s.len() >= n))
+        && n >= k0 + 4 * B;
+    let mut k = [k0; L];
+    if ok {
+        for l in 0..L {
+            let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
+            k[l] = k0 + ((64 - addr % 64) % 64) / size;
+        }
+    } else {
+        k = [n; L];
+    }
+    gen_scalar_steps(cs, xs, &rows, group, [k0; L], k);
+    let blocks = k
+        .iter()
+        .map(|&kl| n.saturating_sub(kl) / B)
+        .min()
+        .unwrap_or(0);
+    let stream: [[bool; N]; L] = std::array::from_fn(|l| {
+        std::array::from_fn(|i| {
+            nt && is_f64::<T>()
+                && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
+        })
+    });
+    let v4 =
+        |f: &dyn Fn(&GenConst<N, M>) -> f64| _mm256_set_pd(f(cs[3]), f(cs[2]), f(cs[1]), f(cs[0]));
+    let a: [[__m256d; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.a[i][j])));
+    let phi: [[__m256d; N]; N] =
+        std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.phi[i][j])));
+    let kk: [[__m256d; M]; N] =
+        std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.k[i][j])));
+    let mut x: [__m256d; N] =
+        std::array::from_fn(|i| _mm256_set_pd(xs[3][i], xs[2][i], xs[1][i], xs[0][i]));
+    let zero = _mm256_setzero_pd();
+    for b in 0..blocks {
+        if let Some((dz, dout)) = ahead {
+            for l in 0..L {
+                let at = k[l] + b * B;
+                prefetch(rows[l].as_ptr().wrapping_add(dz + at * M));
+                if !nt {
+                    for i in 0..N {
+                        prefetch(group[l].2.states[i].as_ptr().wrapping_add(dout + at));
+                    }
+                }
+            }
+        }
+        let mut outv = [[zero; B]; N];
+        for h in 0..2 {
+            // zs[s][c]: component c of each lane's sample k[l] + b B + h L + s.
+            let mut zs = [[zero; M]; L];
+            for g in 0..M {
+                let mut r: [__m256d; L] = std::array::from_fn(|l| {
+                    let at = (k[l] + b * B + h * L) * M + g * L;
+                    // SAFETY: at + L <= (k[l] + (b + 1) B) M <= n M <= rows[l].len().
+                    unsafe { load4(rows[l].as_ptr().add(at)) }
+                });
+                transpose4(&mut r);
+                for (i, ri) in r.iter().enumerate() {
+                    let idx = g * L + i;
+                    zs[idx / M][idx % M] = *ri;
+                }
+            }
+            for (s, zsv) in zs.iter().enumerate() {
+                let mut valid = _mm256_cmp_pd::<_CMP_ORD_Q>(zsv[0], zsv[0]);
+                for zc in zsv.iter().skip(1) {
+                    valid = _mm256_and_pd(valid, _mm256_cmp_pd::<_CMP_ORD_Q>(*zc, *zc));
+                }
+                let xn: [__m256d; N] = std::array::from_fn(|i| {
+                    let mut u = _mm256_mul_pd(kk[i][0], zsv[0]);
+                    for j in 1..M {
+                        u = _mm256_fmadd_pd(kk[i][j], zsv[j], u);
+                    }
+                    for j in 0..N {
+                        u = _mm256_fmadd_pd(a[i][j], x[j], u);
+                    }
+                    let mut p = zero;
+                    for j in 0..N {
+                        p = _mm256_fmadd_pd(phi[i][j], x[j], p);
+                    }
+                    _mm256_blendv_pd(p, u, valid)
+                });
+                x = xn;
+                for i in 0..N {
+                    outv[i][h * L + s] = x[i];
+                }
+            }
+        }
+        for (i, ov) in outv.iter().enumerate() {
+            let mut lo: [__m256d; L] = std::array::from_fn(|s| ov[s]);
+            let mut hi: [__m256d; L] = std::array::from_fn(|s| ov[L + s]);
+            transpose4(&mut lo);
+            transpose4(&mut hi);
+            for l in 0..L {
+                let p = group[l].2.states[i].as_mut_ptr();
+                let at = k[l] + b * B;
+                // SAFETY: at + B <= n <= states[i].len(); streamed rows are
+                // aligned to 64 bytes at `at` (checked in `stream`).
+                unsafe {
+                    store4(p.add(at), lo[l], stream[l][i]);
+                    store4(p.add(at + L), hi[l], stream[l][i]);
+                }
+            }
+        }
+    }
+    if nt {
+        _mm_sfence();
+    }
+    for i in 0..N {
+        let mut t = [0.0; L];
+        // SAFETY: t is a plain array of 4 f64.
+        unsafe { _mm256_storeu_pd(t.as_mut_ptr(), x[i]) };
+        for l in 0..L {
+            xs[l][i] = t[l];
+        }
+    }
+    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * B).min(n));
+    gen_scalar_steps(cs, xs, &rows, group, from, [n; L]);
+}
+
+/// Scalar steps of every general lane `l` over samples `from[l]..to[l]`,
+/// the lanes interleaved.
+#[inline]
+#[target_feature(enable = "fma")]
+fn gen_scalar_steps<T: IoFloat, const N: usize, const M: usize>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    rows: &[&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    from: [usize; GEN_LANES],
+    to: [usize; GEN_LANES],
+) {
+    let most = (0..GEN_LANES)
+        .map(|l| to[l].saturating_sub(from[l]))
+        .max()
+        .unwrap_or(0);
+    for s in 0..most {
+        for l in 0..GEN_LANES.min(group.len()) {
+            let k = from[l] + s;
+            if k < to[l] {
+                let zk: [f64; M] = std::array::from_fn(|j| rows[l][k * M + j].to_f64());
+                xs[l] = gen_step::<N, M, true>(cs[l], &xs[l], &zk);
+                let o = &mut group[l].2;
+                for i in 0..N {
+                    o.states[i][k] = T::from_f64(xs[l][i]);
+                }
+            }
+        }
+    }
+}
+
+/// Whether [`gen_lanes4`] handles `T` and `M`.
+pub(super) fn gen_fits<T: 'static>(m: usize) -> bool {
+    (is_f64::<T>() || is_f32::<T>()) && (m == 1 || m == 2)
 }
