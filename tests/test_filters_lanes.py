@@ -115,10 +115,11 @@ def test_lanes_streaming_chunks_bit_identical(dtype):
     assert np.array_equal(st.x, whole.state.x, equal_nan=True)
 
 
-def test_lanes_large_output_streamed():
-    # 2 x 1000 x 4200 float64 outputs = 67.2 MB >= 64 MiB: non-temporal stores.
+@pytest.mark.parametrize("dtype,n", [(np.float64, 4200), (np.float32, 8400)])
+def test_lanes_large_output_streamed(dtype, n):
+    # 2 x 1000 x n outputs = 67.2 MB >= 64 MiB: non-temporal stores.
     rng = np.random.default_rng(3)
-    z = _z(rng, 1000, 4200, "random", np.float64)
+    z = _z(rng, 1000, n, "random", dtype)
     f = AlphaBetaFilter(0.4, 0.1, 1.0)
     lanes = f.run(z)
     # the scalar loop on a sample of tracks (and the reference on a few)

@@ -565,10 +565,12 @@ fn ab_lanes_entry<T: IoFloat, const FMA: bool>(
 }
 
 /// Whether outputs of `bytes` bytes are written with non-temporal stores by
-/// the vector lanes: only `f64` (the lanes write whole 64-byte lines) and
-/// only outputs much bigger than the caches.
-fn streamed<T: 'static>(bytes: usize) -> bool {
-    std::any::TypeId::of::<T>() == std::any::TypeId::of::<f64>() && bytes >= NT_MIN_BYTES
+/// the vector lanes (which write whole 64-byte lines): only outputs much
+/// bigger than the caches. `f32` too if `lines_f32` (the kernel writes
+/// whole lines of `f32` as well).
+fn streamed<T: 'static>(bytes: usize, lines_f32: bool) -> bool {
+    let f64_ = std::any::TypeId::of::<T>() == std::any::TypeId::of::<f64>();
+    (f64_ || lines_f32) && bytes >= NT_MIN_BYTES
 }
 
 /// Hint the CPU to fetch the cache line at `p` (no effect on memory, never
@@ -716,7 +718,7 @@ fn ab_split<T: IoFloat, const FMA: bool>(
         let mut vb0: [f64; AB_LANES] = std::array::from_fn(|l| v0[AB_LANES + l]);
         // Closures are separate functions that do not inherit the caller's
         // target features: enter the FMA code explicitly.
-        let nt = streamed::<T>(2 * n * std::mem::size_of::<T>());
+        let nt = streamed::<T>(2 * n * std::mem::size_of::<T>(), true);
         let run_a = || ab_lanes_entry::<T, FMA>(&cs, &mut xa0, &mut va0, ls, za, xa, va, nt);
         let run_b = || ab_lanes_entry::<T, FMA>(&cs, &mut xb0, &mut vb0, ls, zb, xb, vb, nt);
         if parallel {
@@ -902,7 +904,7 @@ fn ab_group<T: IoFloat, const FMA: bool>(
         .then(|| (AB_LANES * z.s_track as usize, AB_LANES * n));
     #[cfg(target_arch = "x86_64")]
     if FMA && n >= SIMD_MIN_SAMPLES && simd::available() && simd::fits::<T>(kmax, n) {
-        let nt = streamed::<T>(2 * z.n_tracks * n * std::mem::size_of::<T>());
+        let nt = streamed::<T>(2 * z.n_tracks * n * std::mem::size_of::<T>(), true);
         // SAFETY: `available()` checked AVX-512F and FMA on this CPU.
         unsafe { simd::ab_lanes8(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead, nt) };
         for (l, (_, st, _)) in group.iter_mut().enumerate() {
@@ -1302,7 +1304,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         .then(|| (GEN_LANES * z.s_track as usize, GEN_LANES * n));
     #[cfg(target_arch = "x86_64")]
     if FMA && n >= kmax + 64 && simd::avx2_available() && simd::gen_fits::<T>(M) {
-        let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>());
+        let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), false);
         // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
         unsafe { simd::gen_lanes4::<T, N, M>(cs, &mut xs, kmax, n, rows, group, ahead, nt) };
         for (l, (_, st, _)) in group.iter_mut().enumerate() {

@@ -66,29 +66,32 @@ unsafe fn load8<T: 'static>(p: *const T) -> __m512d {
     }
 }
 
-/// Store eight values at `p` (narrowed to `T`, round to nearest), streamed
-/// past the caches if `nt`.
+/// Store one cache line's worth of values at `p`: the 8 values of `a`
+/// (`f64`), or the 16 of `a` then `b` narrowed to `f32` (round to nearest);
+/// streamed past the caches if `nt`.
 ///
 /// # Safety
-/// `T` is `f64` or `f32`, `p..p+8` is writable and, if `nt`, aligned to
-/// `8 * size_of::<T>()` bytes; AVX-512F is available.
+/// `T` is `f64` or `f32`, the 64 bytes at `p` are writable and, if `nt`,
+/// aligned to 64 bytes; AVX-512F is available.
 #[inline]
 #[target_feature(enable = "avx512f")]
-unsafe fn store8<T: 'static>(p: *mut T, v: __m512d, nt: bool) {
+unsafe fn store_line<T: 'static>(p: *mut T, a: __m512d, b: __m512d, nt: bool) {
     // SAFETY: forwarded from the caller.
     unsafe {
         if is_f64::<T>() {
             if nt {
-                _mm512_stream_pd(p as *mut f64, v)
+                _mm512_stream_pd(p as *mut f64, a)
             } else {
-                _mm512_storeu_pd(p as *mut f64, v)
+                _mm512_storeu_pd(p as *mut f64, a)
             }
         } else {
-            let h = _mm512_cvtpd_ps(v);
+            let lo = _mm256_castps_pd(_mm512_cvtpd_ps(a));
+            let hi = _mm256_castps_pd(_mm512_cvtpd_ps(b));
+            let line = _mm512_castpd_ps(_mm512_insertf64x4::<1>(_mm512_castpd256_pd512(lo), hi));
             if nt {
-                _mm256_stream_ps(p as *mut f32, h)
+                _mm512_stream_ps(p as *mut f32, line)
             } else {
-                _mm256_storeu_ps(p as *mut f32, h)
+                _mm512_storeu_ps(p as *mut f32, line)
             }
         }
     }
@@ -160,7 +163,9 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     let mut xs = xs.map(|s| &mut s[..n]);
     let mut vs = vs.map(|s| &mut s[..n]);
     let (mut x, mut v) = (*x_out, *v_out);
-    let bytes = W * std::mem::size_of::<T>();
+    // Whole cache lines per lane and block: 8 f64 or 16 f32 samples.
+    let bytes = 64;
+    let sb = bytes / std::mem::size_of::<T>();
     // Heads: each lane steps to its first sample with an aligned x output
     // (the lanes interleaved, so their dependency chains overlap).
     let mut k = [k0; AB_LANES];
@@ -175,7 +180,7 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
         |p: *const T, at: usize| (p as usize + at * std::mem::size_of::<T>()).is_multiple_of(bytes);
     let x_aligned: [bool; AB_LANES] = std::array::from_fn(|l| aligned(xs[l].as_ptr(), k[l]));
     let v_aligned: [bool; AB_LANES] = std::array::from_fn(|l| aligned(vs[l].as_ptr(), k[l]));
-    let blocks = k.iter().map(|&kl| (n - kl) / W).min().unwrap_or(0);
+    let blocks = k.iter().map(|&kl| (n - kl) / sb).min().unwrap_or(0);
     let lane = |f: fn(&AbConst) -> f64| {
         _mm512_set_pd(
             f(&c[7]),
@@ -198,44 +203,58 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     let mut vv = unsafe { _mm512_loadu_pd(v.as_ptr()) };
     let zero = _mm512_setzero_pd();
     for b in 0..blocks {
-        let mut rows = [zero; W];
-        for l in 0..AB_LANES {
-            let at = k[l] + b * W;
-            if let Some((dz, dout)) = ahead {
-                prefetch(z[l].as_ptr().wrapping_add(dz + at));
-                if !nt {
-                    prefetch(xs[l].as_ptr().wrapping_add(dout + at));
-                    prefetch(vs[l].as_ptr().wrapping_add(dout + at));
+        let mut xbuf = [[zero; W]; 2];
+        let mut vbuf = [[zero; W]; 2];
+        for h in 0..sb / W {
+            let mut rows = [zero; W];
+            for l in 0..AB_LANES {
+                let at = k[l] + b * sb + h * W;
+                if let Some((dz, dout)) = ahead {
+                    prefetch(z[l].as_ptr().wrapping_add(dz + at));
+                    if !nt {
+                        prefetch(xs[l].as_ptr().wrapping_add(dout + at));
+                        prefetch(vs[l].as_ptr().wrapping_add(dout + at));
+                    }
                 }
+                // SAFETY: at + W <= k[l] + blocks * sb <= n = z[l].len().
+                rows[l] = unsafe { load8(z[l].as_ptr().add(at)) };
             }
-            // SAFETY: at + W <= k[l] + blocks * W <= n = z[l].len().
-            rows[l] = unsafe { load8(z[l].as_ptr().add(at)) };
+            transpose8(&mut rows);
+            let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
+            for j in 0..W {
+                let zj = rows[j];
+                let xp = _mm512_fmadd_pd(ct, vv, xv);
+                let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
+                let zz = _mm512_maskz_mov_pd(valid, zj);
+                let c1 = _mm512_mask_blend_pd(valid, one, coma);
+                let g = _mm512_maskz_mov_pd(valid, cg2);
+                let w = _mm512_fmadd_pd(g, zz, vv);
+                xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(calpha, zz));
+                vv = _mm512_fnmadd_pd(g, xp, w);
+                xo[j] = xv;
+                vo[j] = vv;
+            }
+            transpose8(xo);
+            transpose8(vo);
         }
-        transpose8(&mut rows);
-        let mut xo = [zero; W];
-        let mut vo = [zero; W];
-        for j in 0..W {
-            let zj = rows[j];
-            let xp = _mm512_fmadd_pd(ct, vv, xv);
-            let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
-            let zz = _mm512_maskz_mov_pd(valid, zj);
-            let c1 = _mm512_mask_blend_pd(valid, one, coma);
-            let g = _mm512_maskz_mov_pd(valid, cg2);
-            let w = _mm512_fmadd_pd(g, zz, vv);
-            xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(calpha, zz));
-            vv = _mm512_fnmadd_pd(g, xp, w);
-            xo[j] = xv;
-            vo[j] = vv;
-        }
-        transpose8(&mut xo);
-        transpose8(&mut vo);
         for l in 0..AB_LANES {
-            let at = k[l] + b * W;
-            // SAFETY: at + W <= n = xs[l].len() = vs[l].len(); x stores are
-            // aligned by the head (and v stores are streamed only if aligned).
+            let at = k[l] + b * sb;
+            // SAFETY: at + sb <= n = xs[l].len() = vs[l].len(); x stores are
+            // line-aligned by the head (and v stores are streamed only if
+            // aligned).
             unsafe {
-                store8(xs[l].as_mut_ptr().add(at), xo[l], nt && x_aligned[l]);
-                store8(vs[l].as_mut_ptr().add(at), vo[l], nt && v_aligned[l]);
+                store_line(
+                    xs[l].as_mut_ptr().add(at),
+                    xbuf[0][l],
+                    xbuf[1][l],
+                    nt && x_aligned[l],
+                );
+                store_line(
+                    vs[l].as_mut_ptr().add(at),
+                    vbuf[0][l],
+                    vbuf[1][l],
+                    nt && v_aligned[l],
+                );
             }
         }
     }
@@ -248,7 +267,7 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
         _mm512_storeu_pd(v.as_mut_ptr(), vv);
     }
     // Tails.
-    let start: [usize; AB_LANES] = std::array::from_fn(|l| k[l] + blocks * W);
+    let start: [usize; AB_LANES] = std::array::from_fn(|l| k[l] + blocks * sb);
     scalar_steps(
         c,
         &mut x,
