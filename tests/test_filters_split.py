@@ -49,3 +49,51 @@ def test_split_equals_sequential(alpha, beta, T, nan_frac, offset, dtype):
         assert np.allclose(a.state.x, b.state.x, rtol=0, atol=tol * pscale / T)
     # thread count never changes the split result
     assert np.array_equal(f.run(zc, threads=1).states, f.run(zc, threads=2).states, equal_nan=True)
+
+
+# ---------------------------------------------------------------------------
+# The general kernel's split (alpha-beta-gamma, Singer with position and
+# velocity, a 4-state 2-D model): same comparison, every state component
+# within 1e-12 of its scale (component i: position scale / T^i).
+# ---------------------------------------------------------------------------
+import filterref as fr  # noqa: E402
+from test_filters_compliance import _cv2d, _singer  # noqa: E402
+
+
+def _general_cases():
+    P, H, K, T = _singer(0.5)
+    yield "singer-m2", abkit.FixedGainFilter(P, H, K, T), 2, T, np.array([1.0, 1 / T, 1 / T**2])
+    P, H, K, T = _cv2d(1.0)
+    yield "cv2d", abkit.FixedGainFilter(P, H, K, T), 2, T, np.array([1.0, 1.0, 1.0, 1.0])
+    yield "abg", abkit.AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.1), 1, 0.1, np.array([1.0, 10.0, 100.0])
+    yield "abg-slow", abkit.AlphaBetaGammaFilter(0.02, 2e-4, 1e-6, 1.0), 1, 1.0, np.array([1.0, 1.0, 1.0])
+
+
+@pytest.mark.parametrize("case", list(_general_cases()), ids=lambda c: c[0])
+@pytest.mark.parametrize("nan_frac", [0.0, 0.05])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_general_split_equals_sequential(case, nan_frac, dtype):
+    name, f, m, T, comp_scale = case
+    rng = np.random.default_rng(12)
+    n = 250_003
+    z = fr.kinematic_z(rng, 1, n, T, m=m)[0]
+    z = np.asarray(z, dtype=float)
+    z[rng.random(n) < nan_frac] = np.nan
+    z[120_000:120_400] = np.nan
+    z = z.astype(dtype)
+    init = "first"
+    # strided copy: never split
+    big = np.empty((n, 2) + z.shape[1:], dtype=dtype)
+    big[:, 0] = z
+    zs = big[:, 0]
+    b = f.run(zs, init=init, threads=1)
+    for threads in (1, 2):
+        a = f.run(z, init=init, threads=threads)
+        assert np.array_equal(np.isnan(a.states), np.isnan(b.states))
+        tol = 1e-12 if dtype == np.float64 else 4 * float(np.finfo(np.float32).eps)
+        for i in range(f.n):
+            bi = b.states[i].astype(np.float64)
+            scale = float(np.nanmax(np.abs(bi)))
+            d = float(np.nanmax(np.abs(a.states[i].astype(np.float64) - bi)))
+            assert d <= tol * max(scale, 1e-300) * 1.0001 or d <= tol * float(np.nanmax(np.abs(b.states[0]))) * comp_scale[i], (name, i, d, scale)
+    assert np.array_equal(f.run(z, init=init, threads=1).states, f.run(z, init=init, threads=2).states, equal_nan=True)

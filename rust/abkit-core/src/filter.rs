@@ -1214,6 +1214,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     init: Init,
     z: &Measurements<'_, T>,
     group: &mut [Job<'_, T, N>],
+    parallel: bool,
 ) {
     let n = z.n_samples;
     let pick = |i: usize| if gains.len() == 1 { 0 } else { i };
@@ -1243,6 +1244,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
             k0[g] = len;
         }
     }
+    let group_len = group.len();
     let lanes_ok = group.len() == GEN_LANES
         && group
             .iter()
@@ -1255,6 +1257,24 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
             let i = *i;
             let c = &consts[pick(i)];
             let start = if idx < GEN_LANES { k0[idx] } else { 0 };
+            if let (Some(row), true) = (z.row(i), o.resid.is_none() && group_len < GEN_LANES) {
+                if let Some(seg_len) = gen_split_plan(c, gains[pick(i)].t, n - start) {
+                    let row = &row[..(n * M).min(row.len())];
+                    if row.len() == n * M {
+                        gen_split::<T, N, M, FMA>(
+                            &gains[pick(i)],
+                            c,
+                            st,
+                            start,
+                            row,
+                            o,
+                            seg_len,
+                            parallel,
+                        );
+                        continue;
+                    }
+                }
+            }
             match z.row(i) {
                 Some(row) => gen_loop::<T, N, M, FMA>(
                     c,
@@ -1302,18 +1322,33 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     }
     let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
         .then(|| (GEN_LANES * z.s_track as usize, GEN_LANES * n));
-    #[cfg(target_arch = "x86_64")]
-    if FMA && n >= kmax + 64 && simd::avx2_available() && simd::gen_fits::<T>(M) {
-        let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), false);
-        // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
-        unsafe { simd::gen_lanes4::<T, N, M>(cs, &mut xs, kmax, n, rows, group, ahead, nt) };
-        for (l, (_, st, _)) in group.iter_mut().enumerate() {
-            st.x[..N].copy_from_slice(&xs[l]);
-        }
+    let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), false);
+    let cs: [&GenConst<N, M>; GEN_LANES] = cs;
+    gen_lanes_entry::<T, N, M, FMA>(cs, &mut xs, kmax, n, rows, group, ahead, nt);
+    for (l, (_, st, _)) in group.iter_mut().enumerate() {
+        st.x[..N].copy_from_slice(&xs[l]);
+    }
+}
+
+/// The `GEN_LANES` general lanes over samples `k0..n` (scalar): `rows[l]`
+/// holds lane `l`'s measurements (`n * M` values), `group[l]` its outputs,
+/// `xs[l]` its state (updated).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn gen_lanes_scalar<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    k0: usize,
+    n: usize,
+    rows: [&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+) {
+    if group.len() < GEN_LANES || rows.iter().any(|r| r.len() < n * M) {
         return;
     }
     let line = (64 / std::mem::size_of::<T>()).max(1);
-    for k in kmax..n {
+    for k in k0..n {
         if let Some((dz, dout)) = ahead {
             if k % line == 0 {
                 for l in 0..GEN_LANES {
@@ -1333,9 +1368,215 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
             }
         }
     }
-    for (l, (_, st, _)) in group.iter_mut().enumerate() {
-        st.x[..N].copy_from_slice(&xs[l]);
+}
+
+#[allow(clippy::too_many_arguments)]
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+fn gen_lanes_scalar_fma<T: IoFloat, const N: usize, const M: usize>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    k0: usize,
+    n: usize,
+    rows: [&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+) {
+    gen_lanes_scalar::<T, N, M, true>(cs, xs, k0, n, rows, group, ahead)
+}
+
+/// The general lanes from any context (also a closure run by rayon, which
+/// does not inherit target features): the vector lanes where the CPU has
+/// them, else the scalar lanes (with FMA if `FMA`, which is only true when
+/// [`uses_fma`] said so). Bit-identical either way.
+#[allow(clippy::too_many_arguments)]
+fn gen_lanes_entry<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    k0: usize,
+    n: usize,
+    rows: [&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if FMA && n >= k0 + 64 && simd::avx2_available() && simd::gen_fits::<T>(M) {
+            // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
+            unsafe { simd::gen_lanes4::<T, N, M>(cs, xs, k0, n, rows, group, ahead, nt) };
+            return;
+        }
+        if FMA {
+            // SAFETY: FMA = true only after `uses_fma()` confirmed FMA.
+            unsafe { gen_lanes_scalar_fma::<T, N, M>(cs, xs, k0, n, rows, group, ahead) };
+            return;
+        }
     }
+    let _ = nt;
+    gen_lanes_scalar::<T, N, M, FMA>(cs, xs, k0, n, rows, group, ahead)
+}
+
+/// Segments of a split single general track (fixed: results never depend
+/// on the thread count): four groups of `GEN_LANES`.
+pub const GEN_SPLIT_SEGMENTS: usize = 4 * GEN_LANES;
+
+/// Segment length when splitting a general track of `len` steady-state
+/// samples pays: a long run and a loop `A = (I - K H) Phi` whose transients
+/// shrink by 2^-60 within 1/8 of a segment (checked on `||A^p||_inf` by
+/// repeated squaring).
+fn gen_split_plan<const N: usize, const M: usize>(
+    c: &GenConst<N, M>,
+    t: f64,
+    len: usize,
+) -> Option<usize> {
+    if len < SPLIT_MIN_SAMPLES || !(t.is_finite() && t > 0.0) {
+        return None;
+    }
+    let seg_len = len / GEN_SPLIT_SEGMENTS;
+    let mut p = c.a;
+    let mut steps = 1usize;
+    let norm = |m: &[[f64; N]; N]| -> f64 {
+        // weighted by the kinematic scales t^i so that rates count like positions
+        (0..N)
+            .map(|i| {
+                (0..N)
+                    .map(|j| (m[i][j] * t.powi(i as i32 - j as i32)).abs())
+                    .sum::<f64>()
+            })
+            .fold(0.0, f64::max)
+    };
+    while 2 * steps <= seg_len / 8 {
+        let q: [[f64; N]; N] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| (0..N).map(|k| p[i][k] * p[k][j]).sum())
+        });
+        p = q;
+        steps *= 2;
+        let nm = norm(&p);
+        if nm <= 2f64.powi(-60) {
+            return Some(seg_len);
+        }
+        if !nm.is_finite() {
+            return None;
+        }
+    }
+    None
+}
+
+/// A single long general track split into [`GEN_SPLIT_SEGMENTS`] segments
+/// (the general counterpart of [`ab_split`]): the segments run as lanes
+/// (and on two threads when allowed) from a guessed start state (`pinv(H) z`
+/// of the sample before the segment, or zero), then, in order, each
+/// segment's start-state error `delta` is propagated through the loop (`A`
+/// for an updated sample, `Phi` for a missed one) and added to its outputs
+/// until it is below 2^-60 of the estimate (components weighted by `T^i`).
+/// The filter is linear, so this is the unsplit recursion to rounding.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
+    g: &Gains<N, M>,
+    c: &GenConst<N, M>,
+    st: &mut TrackState,
+    k0: usize,
+    row: &[T],
+    out: &mut TrackOut<'_, T, N>,
+    ls: usize,
+    parallel: bool,
+) {
+    const S: usize = GEN_SPLIT_SEGMENTS;
+    let n = row.len() / M;
+    let body_end = k0 + S * ls;
+    let zat = |k: usize| -> [f64; M] { std::array::from_fn(|j| row[k * M + j].to_f64()) };
+    let mut x0 = [[0.0; N]; S];
+    x0[0] = std::array::from_fn(|i| st.x[i]);
+    for (j, x0j) in x0.iter_mut().enumerate().skip(1) {
+        let zp = zat(k0 + j * ls - 1);
+        if zp.iter().all(|v| !v.is_nan()) {
+            *x0j = std::array::from_fn(|i| (0..M).map(|m| g.h_pinv[i][m] * zp[m]).sum());
+        }
+    }
+    let mut dummy = [TrackState::default(); S];
+    let mut ends = x0;
+    {
+        let mut chunks: Vec<std::slice::ChunksExactMut<'_, T>> = out
+            .states
+            .iter_mut()
+            .map(|s| s[k0..body_end].chunks_exact_mut(ls))
+            .collect();
+        let mut jobs: Vec<Job<'_, T, N>> = Vec::with_capacity(S);
+        for (j, d) in dummy.iter_mut().enumerate() {
+            let states: [&mut [T]; N] =
+                std::array::from_fn(|i| chunks[i].next().unwrap_or_default());
+            jobs.push((
+                j,
+                d,
+                TrackOut {
+                    states,
+                    resid: None,
+                },
+            ));
+        }
+        let zrows: [&[T]; S] =
+            std::array::from_fn(|j| &row[(k0 + j * ls) * M..(k0 + (j + 1) * ls) * M]);
+        let nt = streamed::<T>(N * n * std::mem::size_of::<T>(), false);
+        type Seg<'s, 'j, T, const N: usize> =
+            (usize, (&'s mut [Job<'j, T, N>], &'s mut [[f64; N]]));
+        let run = |(gi, (grp, xs)): Seg<'_, '_, T, N>| {
+            let rows: [&[T]; GEN_LANES] = std::array::from_fn(|l| zrows[gi * GEN_LANES + l]);
+            let mut xl: [[f64; N]; GEN_LANES] = std::array::from_fn(|l| xs[l]);
+            gen_lanes_entry::<T, N, M, FMA>([c; GEN_LANES], &mut xl, 0, ls, rows, grp, None, nt);
+            xs.copy_from_slice(&xl);
+        };
+        if parallel {
+            jobs.par_chunks_mut(GEN_LANES)
+                .zip(ends.par_chunks_mut(GEN_LANES))
+                .enumerate()
+                .for_each(run);
+        } else {
+            jobs.chunks_mut(GEN_LANES)
+                .zip(ends.chunks_mut(GEN_LANES))
+                .enumerate()
+                .for_each(run);
+        }
+    }
+    // Pass 2: corrections, in order.
+    let tiny = 2f64.powi(-60);
+    let w: [f64; N] = std::array::from_fn(|i| g.t.powi(i as i32));
+    let mut truth = ends[0];
+    for j in 1..S {
+        let mut d: [f64; N] = std::array::from_fn(|i| truth[i] - x0[j][i]);
+        let a = k0 + j * ls;
+        let mut k = a;
+        while k < a + ls && d.iter().any(|&v| v != 0.0) {
+            let m = if zat(k).iter().all(|v| !v.is_nan()) {
+                &c.a
+            } else {
+                &c.phi
+            };
+            d = std::array::from_fn(|i| {
+                let mut s = 0.0;
+                for (jj, dj) in d.iter().enumerate() {
+                    s = madd::<FMA>(m[i][jj], *dj, s);
+                }
+                s
+            });
+            let (mut err, mut scale) = (0.0, 0.0);
+            for i in 0..N {
+                let xn = out.states[i][k].to_f64() + d[i];
+                out.states[i][k] = T::from_f64(xn);
+                err += (d[i] * w[i]).abs();
+                scale += (xn * w[i]).abs();
+            }
+            if err <= tiny * scale {
+                d = [0.0; N];
+            }
+            k += 1;
+        }
+        truth = std::array::from_fn(|i| ends[j][i] + d[i]);
+    }
+    st.x[..N].copy_from_slice(&truth);
+    // The few samples after the last full segment.
+    gen_loop::<T, N, M, FMA>(c, st, body_end, n, zat, out);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -1346,8 +1587,9 @@ fn gen_group_fma<T: IoFloat, const N: usize, const M: usize>(
     init: Init,
     z: &Measurements<'_, T>,
     group: &mut [Job<'_, T, N>],
+    parallel: bool,
 ) {
-    gen_group::<T, N, M, true>(gains, consts, init, z, group)
+    gen_group::<T, N, M, true>(gains, consts, init, z, group, parallel)
 }
 
 fn gen_group_dispatch<T: IoFloat, const N: usize, const M: usize>(
@@ -1356,23 +1598,24 @@ fn gen_group_dispatch<T: IoFloat, const N: usize, const M: usize>(
     init: Init,
     z: &Measurements<'_, T>,
     group: &mut [Job<'_, T, N>],
+    parallel: bool,
 ) {
     #[cfg(target_arch = "x86_64")]
     {
         if uses_fma() {
             // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
-            unsafe { gen_group_fma(gains, consts, init, z, group) };
+            unsafe { gen_group_fma(gains, consts, init, z, group, parallel) };
             return;
         }
-        gen_group::<T, N, M, false>(gains, consts, init, z, group)
+        gen_group::<T, N, M, false>(gains, consts, init, z, group, parallel)
     }
     #[cfg(target_arch = "aarch64")]
     {
-        gen_group::<T, N, M, true>(gains, consts, init, z, group)
+        gen_group::<T, N, M, true>(gains, consts, init, z, group, parallel)
     }
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     {
-        gen_group::<T, N, M, false>(gains, consts, init, z, group)
+        gen_group::<T, N, M, false>(gains, consts, init, z, group, parallel)
     }
 }
 
@@ -1445,7 +1688,7 @@ pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
         parallel,
         GEN_LANES,
         |group| {
-            gen_group_dispatch(gains, &consts, init, z, group);
+            gen_group_dispatch(gains, &consts, init, z, group, parallel);
             if let Some(sm) = &smoother {
                 for (i, _, o) in group.iter_mut() {
                     let g = &gains[if gains.len() == 1 { 0 } else { *i }];
