@@ -454,7 +454,7 @@ pub fn filter_tracks<
             counts: c,
         });
     }
-    let run = |b: &mut Block<'_, T, N>| run_block(filt, opts, &off, z, t, b, post);
+    let run = |b: &mut Block<'_, T, N>| run_block_dispatch(filt, opts, &off, z, t, b, post);
     let results: Vec<Result<()>> = if parallel && blocks.len() > 1 {
         blocks.par_iter_mut().map(run).collect()
     } else {
@@ -463,7 +463,68 @@ pub fn filter_tracks<
     results.into_iter().collect()
 }
 
-fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, const M: usize>(
+fn run_block_dispatch<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    off: &[usize],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    b: &mut Block<'_, T, N>,
+    post: &P,
+) -> Result<()> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::filter::uses_fma() {
+            // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
+            return unsafe { run_block_fma(filt, opts, off, z, t, b, post) };
+        }
+        run_block::<T, L, P, N, M, false>(filt, opts, off, z, t, b, post)
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        run_block::<T, L, P, N, M, true>(filt, opts, off, z, t, b, post)
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        run_block::<T, L, P, N, M, false>(filt, opts, off, z, t, b, post)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+fn run_block_fma<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    off: &[usize],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    b: &mut Block<'_, T, N>,
+    post: &P,
+) -> Result<()> {
+    run_block::<T, L, P, N, M, true>(filt, opts, off, z, t, b, post)
+}
+
+#[inline(always)]
+fn run_block<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+    const FMA: bool,
+>(
     filt: &TrackFilter<'_, L, N, M>,
     opts: &Options,
     off: &[usize],
@@ -500,7 +561,7 @@ fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, c
             Some(ts) => {
                 let tb = ts.addr(off[i]);
                 let tf = |k: usize| -> f64 { ts.data[(tb + k as isize * ts.s_sample) as usize] };
-                track_tv(
+                track_tv::<T, L, N, M, FMA>(
                     law,
                     &filt.h,
                     &filt.h_pinv,
@@ -516,7 +577,7 @@ fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, c
                 post.post(i, &mut o.states, Some(&tf), opts.max_gap)?;
             }
             None => {
-                track_tv(
+                track_tv::<T, L, N, M, FMA>(
                     law,
                     &filt.h,
                     &filt.h_pinv,
@@ -538,7 +599,7 @@ fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, c
 
 /// One track of the time-varying kernel (see the module docs).
 #[inline(always)]
-fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
+fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const FMA: bool>(
     law: &mut L,
     h: &[[f64; N]; M],
     h_pinv: &[[f64; M]; N],
@@ -569,7 +630,65 @@ fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     }
     let mut t_last = st.t_last;
     let mut res = Ok(());
-    for k in 0..n {
+    // Alpha-beta fast path state: gains of the last step.
+    let is_ab = N == 2 && M == 1 && law.ab_gains(opts.t_nominal).is_some();
+    let (mut ab_dt, mut ab_a, mut ab_g) = (f64::NAN, 0.0, 0.0);
+    let mut k = 0;
+    while k < n {
+        if is_ab && phase >= 2.0 {
+            // Running alpha-beta over samples with valid steps: the update
+            // arranged as in the fixed-T kernel (two multiply-adds on the
+            // dependency chain); anything else (bad or duplicate timestamp,
+            // gap) falls through to the general code for that sample.
+            let (mut xx, mut vv) = (x[0], x[1]);
+            let (s0, s1) = out.states.split_at_mut(1);
+            let (xs, vs) = (&mut s0[0][..n], &mut s1[0][..n]);
+            let mut resid = out.resid.as_deref_mut().map(|r| &mut r[..n]);
+            while k < n {
+                let dt = match t {
+                    Some(tf) => {
+                        let tk = tf(k);
+                        let dt = tk - t_last;
+                        if !(dt > 0.0 && dt <= max_gap && dt < f64::INFINITY) {
+                            break;
+                        }
+                        t_last = tk;
+                        dt
+                    }
+                    None => opts.t_nominal,
+                };
+                if dt != ab_dt {
+                    let Some((a, g)) = law.ab_gains(dt) else {
+                        break;
+                    };
+                    (ab_dt, ab_a, ab_g) = (dt, a, g);
+                }
+                let zk = z(k)[0];
+                let xp = crate::filter::madd::<FMA>(dt, vv, xx);
+                let e = zk - xp;
+                let valid = !zk.is_nan();
+                let zz = if valid { zk } else { 0.0 };
+                let c1 = if valid { 1.0 - ab_a } else { 1.0 };
+                let g = if valid { ab_g } else { 0.0 };
+                let w = crate::filter::madd::<FMA>(g, zz, vv);
+                xx = crate::filter::madd::<FMA>(c1, xp, ab_a * zz);
+                vv = crate::filter::madd::<FMA>(-g, xp, w);
+                xs[k] = T::from_f64(xx);
+                vs[k] = T::from_f64(vv);
+                if let Some(r) = resid.as_deref_mut() {
+                    r[k] = if valid { T::from_f64(e) } else { nan };
+                }
+                k += 1;
+            }
+            x[0] = xx;
+            x[1] = vv;
+            if k >= n {
+                break;
+            }
+        }
+        let k_now = k;
+        k += 1;
+        let k = k_now;
         let zk = z(k);
         let valid = zk.iter().all(|v| !v.is_nan());
         let mut dt = opts.t_nominal;
