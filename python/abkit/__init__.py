@@ -27,6 +27,7 @@ plot
 
 from . import abg, alphabeta, filters, kalman, riccati, singer
 from ._abkit import __version__
+from ._errors import AccuracyWarning
 from .alphabeta import AlphaBeta
 from .filters import (
     AlphaBetaFilter,
@@ -45,6 +46,7 @@ __all__ = [
     "kalman",
     "riccati",
     "singer",
+    "AccuracyWarning",
     "AlphaBeta",
     "AlphaBetaFilter",
     "AlphaBetaGammaFilter",
