@@ -1381,6 +1381,20 @@ pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
             "column block does not end at the last sample".into(),
         ));
     }
+    for g in gains {
+        let all = g
+            .phi
+            .iter()
+            .flatten()
+            .chain(g.h.iter().flatten())
+            .chain(g.k.iter().flatten());
+        if let Some(v) = all.copied().find(|v| !v.is_finite()) {
+            return Err(Error::domain("Phi, H, K", "finite", v));
+        }
+        if !(g.t.is_finite() && g.t > 0.0) {
+            return Err(Error::domain("T", "finite and > 0", g.t));
+        }
+    }
     let consts: Vec<GenConst<N, M>> = gains.iter().map(GenConst::new).collect();
     run_batch_cols::<T, N>(
         z.n_tracks,
@@ -1418,6 +1432,18 @@ pub fn filter_ab<T: IoFloat>(
     smoother: Option<Smoother<'_, 2>>,
 ) -> Result<()> {
     check_params(params.len(), z)?;
+    // The core is callable directly: NaN/Inf gains or a non-positive period
+    // would give silently meaningless (and chunking-dependent) output.
+    for &(a, b, t) in params {
+        for (name, v) in [("alpha", a), ("beta", b)] {
+            if !v.is_finite() {
+                return Err(Error::domain(name, "finite", v));
+            }
+        }
+        if !(t.is_finite() && t > 0.0) {
+            return Err(Error::domain("T", "finite and > 0", t));
+        }
+    }
     if let Some(sm) = &smoother {
         check_params(sm.a.len(), z)?;
     }
