@@ -183,25 +183,29 @@ impl<'a, T: IoFloat> Measurements<'a, T> {
         })
     }
 
-    /// Check that every element lies inside `data`.
+    /// Check that every element lies inside `data` (with checked
+    /// arithmetic: absurd strides or counts are an error, not an overflow).
     pub fn validate(&self) -> Result<()> {
-        let ext = |n: usize, s: isize| -> (isize, isize) {
-            if n == 0 {
-                return (0, 0);
-            }
-            let span = (n as isize - 1) * s;
-            (span.min(0), span.max(0))
-        };
         if self.n_tracks == 0 || self.n_samples == 0 || self.m == 0 {
             return Ok(());
         }
+        let overflow =
+            || Error::Shape("measurement strides or counts overflow the address range".into());
+        let ext = |n: usize, s: isize| -> Option<(isize, isize)> {
+            let span = isize::try_from(n - 1).ok()?.checked_mul(s)?;
+            Some((span.min(0), span.max(0)))
+        };
         let parts = [
-            ext(self.n_tracks, self.s_track),
-            ext(self.n_samples, self.s_sample),
-            ext(self.m, self.s_comp),
+            ext(self.n_tracks, self.s_track).ok_or_else(overflow)?,
+            ext(self.n_samples, self.s_sample).ok_or_else(overflow)?,
+            ext(self.m, self.s_comp).ok_or_else(overflow)?,
         ];
-        let lo: isize = self.base as isize + parts.iter().map(|p| p.0).sum::<isize>();
-        let hi: isize = self.base as isize + parts.iter().map(|p| p.1).sum::<isize>();
+        let base = isize::try_from(self.base).map_err(|_| overflow())?;
+        let (mut lo, mut hi) = (base, base);
+        for (a, b) in parts {
+            lo = lo.checked_add(a).ok_or_else(overflow)?;
+            hi = hi.checked_add(b).ok_or_else(overflow)?;
+        }
         if lo < 0 || hi >= self.data.len() as isize {
             return Err(Error::Shape(
                 "measurement strides reach outside the buffer".into(),
@@ -1376,6 +1380,17 @@ pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
     parallel: bool,
     smoother: Option<Smoother<'_, N>>,
 ) -> Result<()> {
+    check_params(gains.len(), z)?;
+    if let Some(sm) = &smoother {
+        check_params(sm.a.len(), z)?;
+    }
+    if z.m != M {
+        return Err(Error::Shape(format!(
+            "measurements have {} components, the filter {M}",
+            z.m
+        )));
+    }
+    z.validate()?;
     if col0 + z.n_samples != n_full {
         return Err(Error::Shape(
             "column block does not end at the last sample".into(),

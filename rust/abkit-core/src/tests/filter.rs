@@ -354,3 +354,29 @@ proptest::proptest! {
         }
     }
 }
+
+#[test]
+fn absurd_strides_are_an_error_not_an_overflow() {
+    // Found by fuzzing (fuzz/regressions/filter_layout/): the extent
+    // computation overflowed isize (a panic with overflow checks, a wrong
+    // answer without).
+    let z = [1.0f64; 8];
+    for (s_track, n_tracks, base) in [
+        (isize::MAX, 3, 0),
+        (isize::MIN, 2, 0),
+        (1, usize::MAX, 0),
+        (1, 2, usize::MAX),
+    ] {
+        let m = Measurements {
+            data: &z,
+            base,
+            s_track,
+            s_sample: 1,
+            s_comp: 1,
+            n_tracks,
+            n_samples: 2,
+            m: 1,
+        };
+        assert!(matches!(m.validate(), Err(crate::Error::Shape(_))));
+    }
+}
