@@ -141,3 +141,17 @@ proptest::proptest! {
         }
     }
 }
+
+#[test]
+fn kalman_steady_state_never_returns_an_unstable_predictor() {
+    // Found by fuzzing (fuzz/regressions/riccati/): F = H = 1.65e40,
+    // Q = 9e-314 (subnormal), R = 0 returned Ok with a predictor of
+    // spectral radius 2.4e24 (the DARE's own closed loop had passed).
+    let f = m(1, 1, &[1.6525713066466281e40]);
+    let q = m(1, 1, &[9.0871349165e-314]);
+    let r = m(1, 1, &[0.0]);
+    match kalman_steady_state(&f, &f, &q, &r) {
+        Ok(ks) => assert!(ks.rho < 1.0, "{}", ks.rho),
+        Err(e) => assert!(matches!(e, Error::NoSolution(_)), "{e:?}"),
+    }
+}
