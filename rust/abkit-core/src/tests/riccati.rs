@@ -106,7 +106,12 @@ fn fro(a: &DMatrix<f64>) -> f64 {
 }
 
 proptest::proptest! {
-    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    // fixed seed: reproducible in CI, like the derandomized hypothesis tests
+    #![proptest_config(proptest::prelude::ProptestConfig {
+        cases: 64,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(8),
+        ..proptest::prelude::ProptestConfig::default()
+    })]
     #[test]
     fn dare_properties(
         n in 1usize..5,
