@@ -180,3 +180,11 @@ def test_the_warning_path_is_exercised():
     f = abkit.AlphaBetaFilter(1e-9, 5e-19, 1.0)
     _, ws = _call(lambda: f.covariances(np.array([[0.25, 0.5], [0.5, 1.0]]) * 1e-6, [[1.0]]))
     assert ws and issubclass(ws[0].category, UserWarning)
+
+
+def test_accuracy_warning_is_exported_once():
+    from abkit import _errors
+
+    assert abkit.AccuracyWarning is _errors.AccuracyWarning
+    assert issubclass(abkit.AccuracyWarning, UserWarning)
+    assert "AccuracyWarning" in abkit.__all__

@@ -318,7 +318,16 @@ def steady_state(
         ``method`` (the message names the argument).
     numpy.linalg.LinAlgError
         No checked steady state could be computed (``method="closed-form"``
-        where the closed form's checks fail).
+        where the closed form's checks fail), or a computed variance is
+        negative beyond the solver's tolerance.
+
+    Warns
+    -----
+    abkit.AccuracyWarning
+        The estimated relative error of ``P_pred`` exceeds ``1e-6`` for some
+        element (measured by a second solve with ``theta``, ``q`` and ``r``
+        perturbed by ``1e-10``); the message names the element and gives the
+        estimate.
 
     Notes
     -----
