@@ -164,6 +164,13 @@ def _entries() -> List[Entry]:
     add(Entry("plot.singer_tau_over_T", lambda p2: _plot().singer_tau_over_T(p2), dict(p2=_v(0.01, 0.1, 1.0, 10.0)), dict(p2=P)))
     add(Entry("plot.singer_errors", lambda p2: _closefig(_plot().singer_errors(p2=p2)), dict(p2=_v(0.1, 1.0)), dict(p2=P), override={("p2", "zero-size"): "ValueError"}))
     add(Entry("plot.nomograph", lambda n: _closefig(_plot().nomograph(n=n)), dict(n=50), {}))
+    add(Entry("plot.transfer_response", lambda w: _plot().transfer_response(AB, w), dict(w=_v(0.01, 0.1, 1.0, 3.0)), dict(w=P)))
+    add(Entry("plot.frequency_response", lambda n: _closefig(_plot().frequency_response(AB, n=n)), dict(n=32), {}))
+    add(Entry("plot.transfer_zeros", lambda state: _plot().transfer_zeros(ABG3, state), dict(state=1), {}))
+    add(Entry("plot.pole_zero", lambda: _closefig(_plot().pole_zero(ABG3)), {}, {}))
+    add(Entry("plot.gain_convergence", lambda n: _closefig(_plot().gain_convergence(KF, n=n)), dict(n=20), {}))
+    # a figure of a result and the measurements it was computed from (drawn as given)
+    add(Entry("plot.track", lambda: _closefig(_plot().track(AB.run(Z2), Z2)), {}, {}))
     return E
 
 
@@ -194,6 +201,7 @@ RESULT_TYPES = {
     "abg.ABG", "abg.Coloured", "abg.ColouredGains", "abg.Decoupled", "abg.Gains", "abg.NoiseRatios", "abg.StabilityMargins",
     "singer.SingerSteadyState", "riccati.DareSolution", "riccati.KalmanSteadyState",
     "kalman.KalmanResult", "kalman.GainSequence", "filters.FilterResult", "filters.FilterState",
+    "plot.FrequencyResponse", "plot.PoleZero", "plot.GainConvergence",
 }
 SUBMODULES = ("alphabeta", "abg", "filters", "kalman", "riccati", "singer", "plot")
 
