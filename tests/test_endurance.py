@@ -38,7 +38,7 @@ def rss():
             return int(line.split()[1]) * 1024
 
 warnings.simplefilter('ignore')
-entries = [e for e in t.ENTRIES if not e.name.startswith(('plot.nomograph', 'plot.singer_errors'))]
+entries = [e for e in t.ENTRIES if e.name not in t.FIGURES]
 calls = int(os.environ.get('ABKIT_ENDURANCE_CALLS', '500'))
 for e in entries:            # warm-up: caches, the rayon pool, the threads=3 pool
     for _ in range(50):

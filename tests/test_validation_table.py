@@ -188,6 +188,8 @@ def _closefig(obj: Any) -> None:
 
 ENTRIES = _entries()
 BY_NAME = {e.name: e for e in ENTRIES}
+#: Rows that draw a matplotlib figure (slow; left out of the endurance loop and the fuzzer).
+FIGURES = {"plot.nomograph", "plot.singer_errors", "plot.frequency_response", "plot.pole_zero", "plot.gain_convergence", "plot.track"}
 
 #: Public callables without an array input (nothing to validate beyond their own tests).
 NO_ARRAY_INPUT = {
