@@ -326,10 +326,13 @@ def test_input_never_modified(dtype):
 
 
 def test_no_crash_on_extreme_values():
-    """inf/huge measurements: no crash; the reference semantics still hold (NaN is the only 'missed')."""
+    """huge measurements: no crash, the reference semantics hold (NaN is the
+    only 'missed'); an infinite measurement would poison the track, so it is
+    a ValueError naming z, the track and the sample (issue 8)."""
     z = np.array([0.0, 1.0, 1e300, 3.0, -1e300, 5.0])
     r = AB.run(z, return_residuals=True)
     s, res, _ = fr.run_ref(z, fr.ab_model(0.5, 0.2, 1.0))
     assert np.array_equal(np.isnan(r.states), np.isnan(s))
     zi = np.array([0.0, 1.0, np.inf, 3.0])
-    AB.run(zi)
+    with pytest.raises(ValueError, match=r"z must be finite or NaN .*track 0, sample 2"):
+        AB.run(zi)

@@ -177,3 +177,15 @@ def test_broadcasting_and_parallel_batch_match_scalar_calls():
 def test_bad_input(args, kw, match):
     with pytest.raises(ValueError, match=match):
         singer.steady_state(*args, **kw)
+
+
+def test_fuzz_regression_tiny_noise_gives_no_nan_rms() -> None:
+    """Found by fuzzing (fuzz/regressions/designs/): theta = 0.498, q and the
+    velocity noise at 1.2e-250 made the solver return variances of -1e-16
+    next to ||P|| = 7e-9 (within its tolerance), and rms_velocity was
+    sqrt(negative) = NaN. Now they are zero to that tolerance."""
+    v = 1.224167783418391e-250
+    s = singer.steady_state(1.0, 1.0 / 0.49811553955078125, sigma_pos=1.0, sigma_vel=v, q=v, method="numeric")
+    for x in (s.rms_position, s.rms_velocity, s.rms_acceleration):
+        assert np.isfinite(x) and x >= 0.0
+    assert s.rms_velocity <= 1e-3 * s.rms_position

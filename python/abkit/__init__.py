@@ -28,6 +28,7 @@ plot
 
 from . import abg, alphabeta, filters, kalman, riccati, singer
 from ._abkit import __version__
+from ._errors import AccuracyWarning
 from .alphabeta import AlphaBeta
 from .filters import (
     AlphaBetaFilter,
@@ -46,6 +47,7 @@ __all__ = [
     "kalman",
     "riccati",
     "singer",
+    "AccuracyWarning",
     "AlphaBeta",
     "AlphaBetaFilter",
     "AlphaBetaGammaFilter",

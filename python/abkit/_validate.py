@@ -18,6 +18,9 @@ __all__ = [
     "check_open_interval",
     "check_shape",
     "check_symmetric",
+    "check_representable",
+    "broadcast_shape",
+    "check_tracks_finite",
 ]
 
 
@@ -122,3 +125,58 @@ def check_symmetric(name: str, arr: np.ndarray, rtol: float = 1e-10) -> None:
     asym = float(np.max(np.abs(arr - arr.T))) if arr.size else 0.0
     if asym > rtol * float(np.max(np.abs(arr))):
         raise ValueError(f"{name} must be symmetric, got max |{name} - {name}.T| = {asym:.3g}")
+
+
+def broadcast_shape(names: Sequence[str], arrays: Sequence[np.ndarray]) -> Tuple[int, ...]:
+    """The broadcast shape of ``arrays``; ``ValueError`` listing every argument's shape if none."""
+    try:
+        return tuple(np.broadcast_shapes(*(a.shape for a in arrays)))
+    except ValueError:
+        shapes = ", ".join(f"{n} {a.shape}" for n, a in zip(names, arrays))
+        raise ValueError(f"arguments do not broadcast together: {shapes}") from None
+
+
+def check_representable(what: str, result: np.ndarray, names: Sequence[str], arrays: Sequence[np.ndarray]) -> None:
+    """Raise ``ValueError`` if ``result`` (computed from finite inputs) has
+    non-finite entries: the inputs are at scales where float64 overflows or
+    underflows. The message names the inputs and their values at the first
+    bad element (``result`` has the broadcast shape of the inputs in front)."""
+    bad = ~np.isfinite(result)
+    if not bad.any():
+        return
+    idx = tuple(int(i) for i in np.argwhere(bad)[0])
+    vals = []
+    for n, a in zip(names, arrays):
+        a = np.asarray(a, dtype=np.float64)
+        try:
+            v = float(np.broadcast_to(a, result.shape)[idx])
+        except ValueError:
+            v = float(a.reshape(-1)[0]) if a.size else float("nan")
+        vals.append(f"{n}={v:.6g}")
+    raise ValueError(
+        f"{what} is not representable in float64 (overflow or underflow) for {', '.join(vals)}"
+        f"{'' if result.ndim == 0 else f' (at index {idx})'}; rescale the inputs"
+    )
+
+
+def check_tracks_finite(name: str, z3: np.ndarray, x: np.ndarray, started: np.ndarray) -> None:
+    """After filtering: raise ``ValueError`` if a started track's final
+    estimate ``x[i]`` is not finite. NaN measurements are missed detections
+    and never reach the estimates, so the cause is a ``±Inf`` measurement
+    (named with its track and sample) or values so large that the
+    recursion overflowed float64. ``z3`` is ``(n_tracks, n_samples, m)``;
+    O(n_tracks) unless a track is bad."""
+    bad = started & ~np.all(np.isfinite(x), axis=-1)
+    if not bad.any():
+        return
+    i = int(np.argmax(bad))
+    inf = np.argwhere(np.isinf(z3[i]))
+    if inf.size:
+        k = int(inf[0][0])
+        val = z3[i][tuple(inf[0])]
+        raise ValueError(f"{name} must be finite or NaN (a missed detection), got {val!r} at track {i}, sample {k}")
+    big = float(np.nanmax(np.abs(z3[i]))) if z3[i].size else float("nan")
+    raise ValueError(
+        f"the estimates of track {i} overflowed float64: {name} values up to {big:.3g} are too large "
+        f"for this filter; rescale {name}"
+    )

@@ -60,7 +60,7 @@ import numpy as np
 
 from . import _abkit
 from ._results import FloatOrArray, RowResult, call_binding, out_value
-from ._validate import as_float_array, broadcast
+from ._validate import as_float_array, broadcast, check_positive, check_representable
 from .filters import ABG_CONVENTIONS
 
 __all__ = [
@@ -245,6 +245,7 @@ def to_predictor(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike, h: ArrayLi
     w2 = c * g / (t * t)
     w1 = b / t
     k = np.stack([a + t * w1 + 0.5 * t * t * w2, w1 + t * w2, w2], axis=-1)
+    check_representable("to_predictor(): K", k.reshape(shape + (3,)).sum(axis=-1), ("alpha", "beta", "gamma", "h"), [x.reshape(shape) for x in (a, b, g, t)])
     return k.reshape(shape + (3,))
 
 
@@ -476,6 +477,13 @@ class ABG(RowResult):
         from .filters import AlphaBetaGammaFilter
 
         period = h if h is not None else (self.h if self.h is not None else 1.0)
+        t = as_float_array("h", period)
+        if t.ndim > 1:
+            raise ValueError(f"h must be a scalar or a 1-D array (one per track), got shape {t.shape}")
+        check_positive("h", t)
+        with np.errstate(over="ignore", under="ignore", divide="ignore"):
+            scale = np.maximum(t * t, self.gamma / (t * t))
+        check_representable("the filter's transition and gains", np.where(scale > 0, scale, np.nan), ("h",), (t,))
         return AlphaBetaGammaFilter(self.alpha, self.beta, self.gamma, period, convention=self.convention)
 
     def __repr__(self) -> str:

@@ -52,6 +52,8 @@ from ._results import FloatOrArray, RowResult, call_binding, out_value
 from ._validate import (
     as_float_array,
     broadcast,
+    broadcast_shape,
+    check_representable,
     check_nonnegative,
     check_open_interval,
     check_positive,
@@ -336,14 +338,19 @@ class AlphaBeta(RowResult):
         plus ``omega_n`` and ``damping`` (eqs (6)-(7)).
         """
         t = self._period(T)
-        return {
-            "b1": _out(np.asarray(self._raw("b1_T") / t)),
-            "b2": _out(np.asarray(self._raw("b2_T2") / t**2)),
-            "K": _out(np.asarray(self._raw("b1_T") / t)),
-            "z": _out(np.asarray(self._raw("zero_T") / t)),
-            "omega_n": _out(np.asarray(self._raw("omega_n_T") / t)),
-            "damping": self.damping,
+        out = {
+            "b1": np.asarray(self._raw("b1_T") / t),
+            "b2": np.asarray(self._raw("b2_T2") / t**2),
+            "K": np.asarray(self._raw("b1_T") / t),
+            "z": np.asarray(self._raw("zero_T") / t),
+            "omega_n": np.asarray(self._raw("omega_n_T") / t),
         }
+        for name, v in out.items():
+            if np.all(np.isfinite(self._raw("b2_T2"))):
+                check_representable(f"continuous(): {name}", v, ("T",), (t,))
+        res: Dict[str, FloatOrArray] = {k: _out(v) for k, v in out.items()}
+        res["damping"] = self.damping
+        return res
 
     def scaled_covariance(self, sigma_v: ArrayLike, T: Optional[ArrayLike] = None, kind: str = "filtered") -> np.ndarray:
         """Steady-state covariance in physical units.
@@ -358,12 +365,15 @@ class AlphaBeta(RowResult):
         check_positive("sigma_v", sv)
         t = self._period(T)
         c = self.covariance_filtered if kind == "filtered" else self.covariance_predicted
-        s = np.empty(np.broadcast_shapes(sv.shape, t.shape) + (2, 2))
+        s = np.empty(broadcast_shape(("sigma_v", "T"), (sv, t)) + (2, 2))
         s[..., 0, 0] = sv**2
         s[..., 0, 1] = sv**2 / t
         s[..., 1, 0] = sv**2 / t
         s[..., 1, 1] = sv**2 / t**2
-        return c * s
+        out = c * s
+        if np.all(np.isfinite(c)):
+            check_representable("scaled_covariance()", out.reshape(out.shape[:-2] + (4,)).max(axis=-1), ("sigma_v", "T"), (sv, t))
+        return out
 
     def error_covariance(self, r_true: ArrayLike) -> ErrorCovariance:
         """Steady-state covariance of these gains when the true SNR is ``r_true``.

@@ -45,7 +45,8 @@ from typing import Any, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _abkit
-from ._validate import as_float_array, check_positive
+from ._errors import perturbation_estimate, warn_accuracy
+from ._validate import as_float_array, check_positive, check_representable, check_tracks_finite
 
 __all__ = [
     "FixedGainFilter",
@@ -191,26 +192,26 @@ class FilterResult:
         return f"FilterResult(states={self.states.shape} {self.states.dtype}, residuals={'yes' if self.residuals is not None else 'no'})"
 
 
-def prepare_z(z: Any, m: int) -> Tuple[np.ndarray, Tuple[int, ...], bool]:
-    """Validate measurements and view them as (n_tracks, n_samples, m) without copying."""
+def prepare_z(z: Any, m: int, name: str = "z") -> Tuple[np.ndarray, Tuple[int, ...], bool]:
+    """Validate measurements (named ``name`` in errors) and view them as (n_tracks, n_samples, m) without copying."""
     if not isinstance(z, np.ndarray):
         z = np.asarray(z)
         if z.dtype.kind in "iub":
-            raise TypeError(f"z must be a float32 or float64 array, got {z.dtype}; convert it with np.asarray(z, float)")
+            raise TypeError(f"{name} must be a float32 or float64 array, got {z.dtype}; convert it with np.asarray(z, float)")
     if z.dtype not in _ACCEPTED:
         if z.dtype.kind == "f" and z.dtype.itemsize in (4, 8) and not z.dtype.isnative:
-            raise TypeError(f"z must be float32 or float64 in native byte order, got {z.dtype}; use z.astype(z.dtype.newbyteorder('='))")
-        raise TypeError(f"z must be a float32 or float64 array, got dtype {z.dtype}")
+            raise TypeError(f"{name} must be float32 or float64 in native byte order, got {z.dtype}; use {name}.astype({name}.dtype.newbyteorder('='))")
+        raise TypeError(f"{name} must be a float32 or float64 array, got dtype {z.dtype}")
     if m == 1:
         if z.ndim == 1:
             z3, single = z[None, :, None], True
         elif z.ndim == 2:
             z3, single = z[:, :, None], False
         else:
-            raise ValueError(f"z must have shape (n_samples,) or (n_tracks, n_samples) for scalar measurements, got {z.shape}")
+            raise ValueError(f"{name} must have shape (n_samples,) or (n_tracks, n_samples) for scalar measurements, got {z.shape}")
     else:
         if z.ndim not in (2, 3) or z.shape[-1] != m:
-            raise ValueError(f"z must have shape (n_samples, {m}) or (n_tracks, n_samples, {m}) for this filter (H has {m} rows), got {z.shape}")
+            raise ValueError(f"{name} must have shape (n_samples, {m}) or (n_tracks, n_samples, {m}) for this filter (H has {m} rows), got {z.shape}")
         z3, single = (z[None] if z.ndim == 2 else z), z.ndim == 2
     if not z3.flags.aligned or any(s % z3.itemsize for s in z3.strides):
         z3 = np.ascontiguousarray(z3)  # unaligned memory: the one case that copies
@@ -307,6 +308,8 @@ class FixedGainFilter:
             if not np.all(np.isfinite(a)):
                 raise ValueError(f"{name} must be finite")
         t = as_float_array("T", T)
+        if t.ndim > 1 or (t.ndim == 1 and t.size not in (1, P)):
+            raise ValueError(f"T must be a scalar or have shape ({P},) (one per parameter set), got shape {t.shape}")
         check_positive("T", t)
         self._phi = np.ascontiguousarray(np.broadcast_to(phi, (P, n, n)))
         self._h = np.ascontiguousarray(np.broadcast_to(h, (P, m, n)))
@@ -615,6 +618,9 @@ class FixedGainFilter:
         if return_residuals:
             res3 = np.empty((n_tracks, n_samples, self.m), dtype=z3.dtype)
         self._kernel(z3, packed, init_mode, out3, res3, None if threads is None else int(threads), sgain, None if lag is None else int(lag))
+        if not self.allow_unstable:
+            ph = packed[:, _NMAX]
+            check_tracks_finite("z", z3, np.where((ph == 1)[:, None], packed[:, :1], packed[:, : self.n]), ph > 0)
         residuals = None
         if res3 is not None:
             rshape = shape + ((self.m,) if self.m > 1 else ())
@@ -1024,12 +1030,23 @@ class AlphaBetaGammaFilter(FixedGainFilter):
         P = a.size if a.ndim else 1
         a, b, g, t = (x.reshape(P) for x in (a, b, g, t))
         c = ABG_CONVENTIONS[convention]
+        with np.errstate(over="ignore", under="ignore"):
+            scale = np.maximum.reduce([t * t, np.abs(b) / t, np.abs(c * g) / (t * t)])
+        check_representable("the transition and gains", scale, ("alpha", "beta", "gamma", "T"), (a, b, g, t))
         phi = np.zeros((P, 3, 3))
         phi[:, 0, 0] = phi[:, 1, 1] = phi[:, 2, 2] = 1.0
         phi[:, 0, 1] = phi[:, 1, 2] = t
         phi[:, 0, 2] = t * t / 2
         k = np.stack([a, b / t, c * g / (t * t)], axis=-1)[:, :, None]
-        super().__init__(phi, np.array([[1.0, 0.0, 0.0]]), k, t, allow_unstable=allow_unstable)
+        super().__init__(phi, np.array([[1.0, 0.0, 0.0]]), k, t, allow_unstable=True)
+        self.allow_unstable = allow_unstable
+        rho = np.atleast_1d(self.spectral_radius)
+        if not allow_unstable and not np.all(rho < 1.0):
+            i = int(np.argmax(~(rho < 1.0)))
+            raise ValueError(
+                f"alpha={a[i]!r}, beta={b[i]!r}, gamma={g[i]!r} ({convention!r} convention) give an unstable filter: "
+                f"spectral radius of (I - K H) Phi is {float(rho[i]):.6g} >= 1; pass allow_unstable=True to run it anyway"
+            )
         self.convention = convention
         self._tv_law = ("abg-fixed", np.stack([a, b, c * g], axis=-1))
         self.alpha = a[0] if P == 1 else a
@@ -1110,7 +1127,14 @@ class Tracker:
         z = np.asarray(z_chunk) if not isinstance(z_chunk, np.ndarray) else z_chunk
         if z.dtype.kind in "iub":
             z = z.astype(np.float64)
-        res = self.filter.run(z, init=self.init, state=self.state, **kw)
+        prepare_z(z, self.filter.m, "z_chunk")
+        try:
+            res = self.filter.run(z, init=self.init, state=self.state, **kw)
+        except ValueError as exc:  # name the argument as the caller spelled it
+            msg = str(exc)
+            if msg.startswith("z "):
+                raise ValueError("z_chunk" + msg[1:]) from None
+            raise
         self.state = res.state
         self.samples += res.states.shape[-1] if res.state.axes is None else res.states.shape[-2]
         return res
@@ -1151,11 +1175,21 @@ class SteadyStateCovariance:
         return f"SteadyStateCovariance(filtered=\n{self.filtered},\npredicted=\n{self.predicted})"
 
 
-def _dlyap(a: np.ndarray, q: np.ndarray) -> np.ndarray:
+def _dlyap(a: np.ndarray, q: np.ndarray, check: bool = True) -> np.ndarray:
     """Solve X = A X A^T + Q for small n (Kronecker form)."""
     n = a.shape[0]
     lhs = np.eye(n * n) - np.kron(a, a)
     x = np.linalg.solve(lhs, q.reshape(-1)).reshape(n, n)
+    if check:  # a second solve on perturbed data estimates the conditioning
+        from .riccati import _perturbed
+
+        ap, qp = _perturbed((a, q))
+        xp = _dlyap(ap, qp, check=False)
+        warn_accuracy(
+            "covariances", float(perturbation_estimate(x, xp)),
+            f"loop spectral radius {float(np.max(np.abs(np.linalg.eigvals(a)))):.15g}: the Lyapunov equation is ill-conditioned",
+            stacklevel=4,
+        )
     return 0.5 * (x + x.T)
 
 

@@ -42,7 +42,7 @@ from typing import Any, NamedTuple, Optional, Tuple
 import numpy as np
 
 from . import _abkit
-from ._validate import as_float_array
+from ._validate import as_float_array, check_tracks_finite
 from .filters import prepare_z
 
 __all__ = ["KalmanFilter", "KalmanResult", "GainSequence", "gain_sequence"]
@@ -224,6 +224,8 @@ class KalmanFilter:
             self.x0.reshape(-1), self.P0.reshape(-1), o.reshape((self.n, n_tracks, n_samples)), pf, res3,
             None if threads is None else int(threads),
         )
+        if n_samples:
+            check_tracks_finite("z", z3, o.reshape((self.n, n_tracks, n_samples))[:, :, -1].T, np.ones(n_tracks, dtype=bool))
         residuals = None
         if res3 is not None:
             residuals = res3.reshape(shape + ((self.m,) if self.m > 1 else ()))

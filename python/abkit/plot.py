@@ -27,6 +27,7 @@ import numpy as np
 
 from . import alphabeta as _ab
 from . import singer as _singer
+from ._validate import as_float_array, check_positive
 
 __all__ = [
     "nomograph",
@@ -150,7 +151,8 @@ def singer_tau_over_T(p2: Any, factor: float = 1.0) -> np.ndarray:
 
     ``factor = 1`` is the solid curves, ``factor = 10`` the dotted ones.
     """
-    p2 = np.asarray(p2, dtype=float)
+    p2 = as_float_array("p2", p2)
+    check_positive("p2", p2)
     return factor * np.sqrt(0.56 + 3.4 * p2**-0.86)
 
 
@@ -200,7 +202,10 @@ def singer_errors(
     ['sqrt(P11) / sigma_pos', 'sqrt(P22) T / sigma_pos', 'sqrt(P33) T^2 / sigma_pos']
     """
     plt = _pyplot()
-    x = np.logspace(-3, 3, 61) if p2 is None else np.asarray(p2, dtype=float).ravel()
+    x = np.logspace(-3, 3, 61) if p2 is None else as_float_array("p2", p2).ravel()
+    if x.size == 0:
+        raise ValueError("p2 must not be empty")
+    check_positive("p2", x)
     if axes is None:
         _, axes = plt.subplots(3, 1, figsize=(6.0, 10.0), constrained_layout=True, sharex=True)
     axes = list(axes)
@@ -210,7 +215,10 @@ def singer_errors(
     labels = ["sqrt(P11) / sigma_pos", "sqrt(P22) T / sigma_pos", "sqrt(P33) T^2 / sigma_pos"]
     for k, f in enumerate(factors):
         tau = singer_tau_over_T(x, f)
-        s = _singer.steady_state(1.0, tau, x, 1.0, sigma_vel_ratio, method=method)
+        try:
+            s = _singer.steady_state(1.0, tau, x, 1.0, sigma_vel_ratio, method=method)
+        except ValueError as exc:
+            raise type(exc)(f"p2 is outside the range this figure can be computed for: {exc}") from None
         for ax, y in zip(axes, (s.rms_position, s.rms_velocity, s.rms_acceleration)):
             ax.loglog(x, np.atleast_1d(y), styles[k % 4], color="k", label=f"tau/T = {f:g} [0.56 + 3.4 p2^-0.86]^1/2")
     for ax, lab, title in zip(axes, labels, ("Fig. 1: position", "Fig. 2: velocity", "Fig. 3: acceleration")):
@@ -297,7 +305,10 @@ def transfer_response(filt: Any, w: Any, measurement: int = 0) -> np.ndarray:
     if not isinstance(measurement, (int, np.integer)) or not 0 <= measurement < m:
         raise ValueError(f"measurement must be an integer in [0, {m}), got {measurement!r}")
     a = (np.eye(n) - k @ h) @ phi
-    ww = np.asarray(w, dtype=float).ravel()
+    ww = as_float_array("w", w).ravel()
+    bad = ~np.isfinite(ww)
+    if bad.any():
+        raise ValueError(f"w must be finite, got {ww[bad][0]!r}")
     z = np.exp(1j * ww)
     out = np.empty((n, ww.size), dtype=complex)
     for i, zi in enumerate(z):

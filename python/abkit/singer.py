@@ -55,8 +55,10 @@ from typing import Any, Optional, Tuple, Union
 import numpy as np
 
 from . import _abkit
+from ._errors import perturbation_estimate, warn_accuracy
 from ._results import out_value
-from ._validate import as_float_array, broadcast, check_positive
+from ._validate import as_float_array, broadcast, check_positive, check_representable
+from .riccati import _perturbed
 
 __all__ = ["model", "steady_state", "tracking_filter", "SingerSteadyState", "METHODS"]
 
@@ -165,8 +167,13 @@ def model(
     ta = _resolve_tau(tau, alpha)
     kind, val = _resolve_q(sigma_m, q, ta)
     shape, (tf, tauf, vf) = broadcast(["T", "tau", kind], [t, ta, val])
-    qf = 2.0 * vf**2 / tauf if kind == "sigma_m" else vf
+    with np.errstate(over="ignore", under="ignore"):
+        qf = 2.0 * vf**2 / tauf if kind == "sigma_m" else vf
+    names = ("T", "tau", kind)
+    if kind == "sigma_m":
+        check_representable("the noise density q = 2 sigma_m^2 / tau", qf.reshape(shape), names, (t, ta, val))
     out = _abkit.singer_model(tf, tauf, qf)
+    check_representable("the model (Phi, Q)", out.max(axis=-1).reshape(shape), names, (t, ta, val))
     return out[:, :9].reshape(shape + (3, 3)), out[:, 9:].reshape(shape + (3, 3))
 
 
@@ -240,6 +247,26 @@ class SingerSteadyState:
 _out = out_value
 
 
+def _check_accuracy(P: np.ndarray, theta: np.ndarray, qn: np.ndarray, rv: np.ndarray, code: np.ndarray, shape: Tuple[int, ...]) -> None:
+    """AccuracyWarning where a second solve with (theta, q, r) perturbed at
+    1e-10 shows a condition number putting the error above the tolerance
+    (eigenvalues near the unit circle)."""
+    if P.shape[0] == 0:
+        return
+    tp, qp, rp = _perturbed((theta, qn, np.where(np.isfinite(rv), rv, np.inf)))
+    try:
+        Pp = _abkit.singer_steady_state(tp, qp, rp, code)[:, 0:9].reshape(P.shape)
+    except (np.linalg.LinAlgError, ValueError):
+        Pp = np.full_like(P, np.nan)
+    est = perturbation_estimate(P, Pp)
+    i = int(np.argmax(est))
+    where = "" if shape == () else f" (at index {tuple(int(j) for j in np.unravel_index(i, shape))})"
+    warn_accuracy(
+        f"singer.steady_state: P_pred{where}", float(est[i]),
+        f"theta = T/tau = {float(theta[i]):.6g}: the Riccati equation is ill-conditioned", stacklevel=4,
+    )
+
+
 def steady_state(
     T: ArrayLike,
     tau: Optional[ArrayLike] = None,
@@ -291,7 +318,16 @@ def steady_state(
         ``method`` (the message names the argument).
     numpy.linalg.LinAlgError
         No checked steady state could be computed (``method="closed-form"``
-        where the closed form's checks fail).
+        where the closed form's checks fail), or a computed variance is
+        negative beyond the solver's tolerance.
+
+    Warns
+    -----
+    abkit.AccuracyWarning
+        The estimated relative error of ``P_pred`` exceeds ``1e-6`` for some
+        element (measured by a second solve with ``theta``, ``q`` and ``r``
+        perturbed by ``1e-10``); the message names the element and gives the
+        estimate.
 
     Notes
     -----
@@ -387,7 +423,17 @@ def steady_state(
         R = np.zeros((n, 2, 2))
         R[:, 0, 0] = spf**2
         R[:, 1, 1] = svf**2
-    diag = np.sqrt(np.diagonal(P_n, axis1=1, axis2=2))
+    # Variances whose true value is below the solver's tolerance (1e-8 of
+    # ||P||) can come out as tiny negatives; within 1e-7 of ||P|| they are
+    # zero to that tolerance (fuzzing found -1e-16 next to ||P|| = 7e-9).
+    dg = np.diagonal(P_n, axis1=1, axis2=2)
+    neg = dg < -1e-7 * np.abs(P_n).max(axis=(1, 2))[:, None]
+    if neg.any():
+        i = int(np.argmax(neg.any(axis=1)))
+        where = "" if shape == () else f" (at index {tuple(int(j) for j in np.unravel_index(i, shape))})"
+        raise np.linalg.LinAlgError(f"the computed prediction covariance has a negative variance {dg[neg][0]:.3g}{where}")
+    diag = np.sqrt(np.maximum(dg, 0.0))
+    _check_accuracy(P_n, theta, qn, rv, code, shape)
 
     def sh(x: np.ndarray, tail: Tuple[int, ...]) -> np.ndarray:
         return x.reshape(shape + tail)

@@ -196,25 +196,29 @@ impl<'a, T: IoFloat> Measurements<'a, T> {
         })
     }
 
-    /// Check that every element lies inside `data`.
+    /// Check that every element lies inside `data` (with checked
+    /// arithmetic: absurd strides or counts are an error, not an overflow).
     pub fn validate(&self) -> Result<()> {
-        let ext = |n: usize, s: isize| -> (isize, isize) {
-            if n == 0 {
-                return (0, 0);
-            }
-            let span = (n as isize - 1) * s;
-            (span.min(0), span.max(0))
-        };
         if self.n_tracks == 0 || self.n_samples == 0 || self.m == 0 {
             return Ok(());
         }
+        let overflow =
+            || Error::Shape("measurement strides or counts overflow the address range".into());
+        let ext = |n: usize, s: isize| -> Option<(isize, isize)> {
+            let span = isize::try_from(n - 1).ok()?.checked_mul(s)?;
+            Some((span.min(0), span.max(0)))
+        };
         let parts = [
-            ext(self.n_tracks, self.s_track),
-            ext(self.n_samples, self.s_sample),
-            ext(self.m, self.s_comp),
+            ext(self.n_tracks, self.s_track).ok_or_else(overflow)?,
+            ext(self.n_samples, self.s_sample).ok_or_else(overflow)?,
+            ext(self.m, self.s_comp).ok_or_else(overflow)?,
         ];
-        let lo: isize = self.base as isize + parts.iter().map(|p| p.0).sum::<isize>();
-        let hi: isize = self.base as isize + parts.iter().map(|p| p.1).sum::<isize>();
+        let base = isize::try_from(self.base).map_err(|_| overflow())?;
+        let (mut lo, mut hi) = (base, base);
+        for (a, b) in parts {
+            lo = lo.checked_add(a).ok_or_else(overflow)?;
+            hi = hi.checked_add(b).ok_or_else(overflow)?;
+        }
         if lo < 0 || hi >= self.data.len() as isize {
             return Err(Error::Shape(
                 "measurement strides reach outside the buffer".into(),
@@ -1680,10 +1684,35 @@ pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
     parallel: bool,
     smoother: Option<Smoother<'_, N>>,
 ) -> Result<()> {
+    check_params(gains.len(), z)?;
+    if let Some(sm) = &smoother {
+        check_params(sm.a.len(), z)?;
+    }
+    if z.m != M {
+        return Err(Error::Shape(format!(
+            "measurements have {} components, the filter {M}",
+            z.m
+        )));
+    }
+    z.validate()?;
     if col0 + z.n_samples != n_full {
         return Err(Error::Shape(
             "column block does not end at the last sample".into(),
         ));
+    }
+    for g in gains {
+        let all = g
+            .phi
+            .iter()
+            .flatten()
+            .chain(g.h.iter().flatten())
+            .chain(g.k.iter().flatten());
+        if let Some(v) = all.copied().find(|v| !v.is_finite()) {
+            return Err(Error::domain("Phi, H, K", "finite", v));
+        }
+        if !(g.t.is_finite() && g.t > 0.0) {
+            return Err(Error::domain("T", "finite and > 0", g.t));
+        }
     }
     let consts: Vec<GenConst<N, M>> = gains.iter().map(GenConst::new).collect();
     run_batch_cols::<T, N>(
@@ -1722,6 +1751,18 @@ pub fn filter_ab<T: IoFloat>(
     smoother: Option<Smoother<'_, 2>>,
 ) -> Result<()> {
     check_params(params.len(), z)?;
+    // The core is callable directly: NaN/Inf gains or a non-positive period
+    // would give silently meaningless (and chunking-dependent) output.
+    for &(a, b, t) in params {
+        for (name, v) in [("alpha", a), ("beta", b)] {
+            if !v.is_finite() {
+                return Err(Error::domain(name, "finite", v));
+            }
+        }
+        if !(t.is_finite() && t > 0.0) {
+            return Err(Error::domain("T", "finite and > 0", t));
+        }
+    }
     if let Some(sm) = &smoother {
         check_params(sm.a.len(), z)?;
     }

@@ -80,6 +80,14 @@ pub fn update<const N: usize, const M: usize>(
     let pht = mul(p_prior, &ht);
     let hpht = mul(&m.h, &pht);
     let s: Mat<M, M> = std::array::from_fn(|i| std::array::from_fn(|j| hpht[i][j] + m.r[i][j]));
+    if let Some(v) = s.iter().flatten().find(|v| !v.is_finite()) {
+        // finite model matrices whose covariance recursion overflowed
+        return Err(Error::domain(
+            "F, H, Q, P0",
+            "of a scale at which the covariance recursion stays within float64 (it overflowed)",
+            *v,
+        ));
+    }
     let sinv = inv_spd(&s).ok_or_else(|| {
         Error::domain(
             "R",

@@ -413,6 +413,14 @@ pub fn kalman_from_prediction(
     let p_filt = sym(&ikh * &p_pred * ikh.transpose() + &k_filt * r * k_filt.transpose());
     let k_pred = f * &k_filt;
     let rho = spectral_radius(&(f - &k_pred * h))?;
+    if rho.is_nan() || rho >= 1.0 {
+        // The DARE's closed loop was stable, but the gain recomputed from
+        // P in the filter form is not: P is too inaccurate for this problem.
+        return Err(Error::NoSolution(format!(
+            "the steady-state predictor F - F K H computed from the solution is not stable \
+             (spectral radius {rho:e}): the problem is too ill-conditioned"
+        )));
+    }
     Ok(KalmanSteadyState {
         p_pred,
         k_filt,

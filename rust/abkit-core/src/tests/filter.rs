@@ -238,3 +238,150 @@ fn bad_strides_and_param_counts_are_errors() {
     )
     .is_err());
 }
+
+#[test]
+fn non_finite_gains_or_period_are_errors() {
+    // Found by fuzzing (fuzz/regressions/filter/): NaN gains and T = -inf
+    // were run, and the meaningless output even depended on chunking.
+    let z = [1.0f64, 2.0];
+    let meas = Measurements::contiguous(&z, 1, 2, 1).unwrap();
+    let bad_ab = [
+        (f64::NAN, 0.1, 1.0),
+        (0.5, f64::INFINITY, 1.0),
+        (0.5, 0.1, f64::NEG_INFINITY),
+        (0.5, 0.1, 0.0),
+        (0.5, 0.1, f64::NAN),
+    ];
+    for p in bad_ab {
+        let mut st = [TrackState::default(); 1];
+        let mut out = vec![0.0; 4];
+        let r = filter_ab(
+            &[p],
+            Init::First,
+            &meas,
+            &mut st,
+            &mut out,
+            None,
+            false,
+            None,
+        );
+        assert!(matches!(r, Err(crate::Error::Domain { .. })), "{p:?}");
+    }
+    let good = Gains::<2, 1> {
+        phi: [[1.0, 1.0], [0.0, 1.0]],
+        h: [[1.0, 0.0]],
+        k: [[0.5], [0.2]],
+        h_pinv: [[1.0], [0.0]],
+        t: 1.0,
+    };
+    let mut bad_k = good;
+    bad_k.k[1][0] = f64::NAN;
+    let mut bad_t = good;
+    bad_t.t = -1.0;
+    for g in [bad_k, bad_t] {
+        let mut st = [TrackState::default(); 1];
+        let mut out = vec![0.0; 4];
+        let r = filter_general(
+            &[g],
+            Init::First,
+            &meas,
+            &mut st,
+            &mut out,
+            None,
+            false,
+            None,
+        );
+        assert!(matches!(r, Err(crate::Error::Domain { .. })));
+    }
+    let mut st = [TrackState::default(); 1];
+    let mut out = vec![0.0; 4];
+    assert!(filter_general(
+        &[good],
+        Init::First,
+        &meas,
+        &mut st,
+        &mut out,
+        None,
+        false,
+        None
+    )
+    .is_ok());
+}
+
+// Property tests (issue 8): for stable alpha-beta gains and any split point,
+// a run in two chunks (streaming state) equals one run, and bounded finite
+// measurements give finite estimates after start-up.
+proptest::proptest! {
+    // fixed seed: reproducible in CI, like the derandomized hypothesis tests
+    #![proptest_config(proptest::prelude::ProptestConfig {
+        cases: 128,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(8),
+        ..proptest::prelude::ProptestConfig::default()
+    })]
+    #[test]
+    fn ab_chunked_equals_one_run_and_stays_finite(
+        a in 1e-4f64..1.99,
+        fb in 1e-4f64..0.999,
+        logt in -3.0f64..3.0,
+        z in proptest::collection::vec(proptest::option::weighted(0.9, -1e6f64..1e6), 2..200),
+        split_frac in 0.0f64..1.0,
+        two_point in proptest::bool::ANY,
+    ) {
+        let b = fb * (4.0 - 2.0 * a);
+        let t = 10f64.powf(logt);
+        let z: Vec<f64> = z.into_iter().map(|v| v.unwrap_or(f64::NAN)).collect();
+        let ns = z.len();
+        let init = if two_point { Init::TwoPoint } else { Init::First };
+        let run = |zs: &[f64], st: &mut [TrackState]| -> Vec<f64> {
+            let meas = Measurements::contiguous(zs, 1, zs.len(), 1).unwrap();
+            let mut out = vec![0.0; 2 * zs.len()];
+            filter_ab(&[(a, b, t)], init, &meas, st, &mut out, None, false, None).unwrap();
+            out
+        };
+        let mut st = [TrackState::default(); 1];
+        let one = run(&z, &mut st);
+        let k = ((split_frac * ns as f64) as usize).min(ns);
+        let mut st2 = [TrackState::default(); 1];
+        let o1 = run(&z[..k], &mut st2);
+        let o2 = run(&z[k..], &mut st2);
+        for c in 0..2 {
+            let joined: Vec<f64> = o1[c * k..(c + 1) * k].iter().chain(&o2[c * (ns - k)..(c + 1) * (ns - k)]).copied().collect();
+            for (x, y) in one[c * ns..(c + 1) * ns].iter().zip(&joined) {
+                proptest::prop_assert!(x == y || (x.is_nan() && y.is_nan()), "{} vs {}", x, y);
+            }
+        }
+        // finite once running (after the first two valid samples)
+        let valid: Vec<usize> = (0..ns).filter(|&i| !z[i].is_nan()).collect();
+        if valid.len() >= 2 {
+            for i in valid[1] + 1..ns {
+                proptest::prop_assert!(one[i].is_finite() && one[ns + i].is_finite());
+            }
+        }
+    }
+}
+
+#[test]
+fn absurd_strides_are_an_error_not_an_overflow() {
+    // Found by fuzzing (fuzz/regressions/filter_layout/): the extent
+    // computation overflowed isize (a panic with overflow checks, a wrong
+    // answer without).
+    let z = [1.0f64; 8];
+    for (s_track, n_tracks, base) in [
+        (isize::MAX, 3, 0),
+        (isize::MIN, 2, 0),
+        (1, usize::MAX, 0),
+        (1, 2, usize::MAX),
+    ] {
+        let m = Measurements {
+            data: &z,
+            base,
+            s_track,
+            s_sample: 1,
+            s_comp: 1,
+            n_tracks,
+            n_samples: 2,
+            m: 1,
+        };
+        assert!(matches!(m.validate(), Err(crate::Error::Shape(_))));
+    }
+}

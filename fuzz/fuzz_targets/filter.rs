@@ -1,0 +1,204 @@
+//! Fixed-gain filtering with arbitrary gains, periods, start-up and
+//! measurements (NaN = missed detection, Inf, huge values).
+//!
+//! Invariants: no panic; a run in two chunks (streaming state) is bit for bit
+//! one run; sequential and parallel runs agree bit for bit; and when the
+//! filter is stable, the period moderate and every measurement finite and
+//! bounded, every estimate after start-up is finite.
+#![no_main]
+
+use abkit_core::filter::{filter_ab, filter_general, Gains, Init, Measurements, TrackState};
+use libfuzzer_sys::fuzz_target;
+
+#[path = "common.rs"]
+mod common;
+use common::Bytes;
+
+/// Equal bit for bit, except that +0 == -0 (a chunk of one sample can take
+/// a code path that gives -0 where the whole run gives +0: numerically equal)
+/// and NaN == NaN.
+fn same(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .all(|(x, y)| x.to_bits() == y.to_bits() || x == y || (x.is_nan() && y.is_nan()))
+}
+
+struct Case {
+    nt: usize,
+    ns: usize,
+    z: Vec<f64>,
+    init: Init,
+    split: usize,
+}
+
+fn case(b: &mut Bytes) -> Case {
+    let nt = 1 + b.usize_below(5);
+    let ns = b.usize_below(48);
+    let init = if b.u8() % 2 == 0 {
+        Init::First
+    } else {
+        Init::TwoPoint
+    };
+    let split = b.usize_below(ns + 1);
+    let mode = b.u8();
+    let mut z = Vec::with_capacity(nt * ns);
+    for i in 0..nt * ns {
+        z.push(match mode % 3 {
+            0 => b.f64(),               // anything
+            1 => b.in_range(-1e6, 1e6), // bounded
+            _ => {
+                if b.u8() < 40 {
+                    f64::NAN
+                } else {
+                    (i % ns) as f64 * 0.5 + b.in_range(-1.0, 1.0)
+                }
+            }
+        });
+    }
+    Case {
+        nt,
+        ns,
+        z,
+        init,
+        split,
+    }
+}
+
+/// Run `f` on the whole batch and on two chunks; check they agree.
+fn run2(
+    c: &Case,
+    n: usize,
+    f: &dyn Fn(
+        &Measurements<'_, f64>,
+        &mut [TrackState],
+        &mut [f64],
+        bool,
+    ) -> Result<(), abkit_core::Error>,
+) -> Option<Vec<f64>> {
+    let meas = Measurements::contiguous(&c.z, c.nt, c.ns, 1).ok()?;
+    let mut st = vec![TrackState::default(); c.nt];
+    let mut out = vec![0.0; n * c.nt * c.ns];
+    let r = f(&meas, &mut st, &mut out, false);
+    let mut st_p = vec![TrackState::default(); c.nt];
+    let mut out_p = vec![0.0; n * c.nt * c.ns];
+    let rp = f(&meas, &mut st_p, &mut out_p, true);
+    assert_eq!(r.is_ok(), rp.is_ok());
+    r.ok()?;
+    assert!(same(&out, &out_p), "parallel run differs");
+    if c.z.iter().any(|v| v.is_infinite()) {
+        // +-Inf measurements: no panic is all that is required (the Python
+        // layer rejects them with a ValueError naming track and sample).
+        return Some(out);
+    }
+    // two chunks with the streaming state
+    let (k, ns) = (c.split, c.ns);
+    let mut st2 = vec![TrackState::default(); c.nt];
+    let mut full = vec![0.0; n * c.nt * ns];
+    for (lo, hi) in [(0, k), (k, ns)] {
+        let w = hi - lo;
+        let zc: Vec<f64> = (0..c.nt)
+            .flat_map(|i| c.z[i * ns + lo..i * ns + hi].to_vec())
+            .collect();
+        let m = Measurements::contiguous(&zc, c.nt, w, 1).ok()?;
+        let mut o = vec![0.0; n * c.nt * w];
+        f(&m, &mut st2, &mut o, false).ok()?;
+        for comp in 0..n {
+            for i in 0..c.nt {
+                full[(comp * c.nt + i) * ns + lo..(comp * c.nt + i) * ns + hi]
+                    .copy_from_slice(&o[(comp * c.nt + i) * w..(comp * c.nt + i) * w + w]);
+            }
+        }
+    }
+    if !same(&out, &full) {
+        let i = (0..out.len())
+            .find(|&i| !same(&out[i..i + 1], &full[i..i + 1]))
+            .unwrap_or(0);
+        panic!(
+            "chunked run differs from one run: nt {} ns {} split {} init {:?} at {i}: {} vs {}; z {:?}",
+            c.nt, c.ns, c.split, c.init, out[i], full[i], &c.z[..c.z.len().min(12)]
+        );
+    }
+    let sa: Vec<f64> = st.iter().flat_map(|s| s.x).collect();
+    let sb: Vec<f64> = st2.iter().flat_map(|s| s.x).collect();
+    assert!(same(&sa, &sb), "chunked final state differs");
+    Some(out)
+}
+
+fn check_finite(c: &Case, n: usize, out: &[f64]) {
+    if !c.z.iter().all(|z| z.is_finite() && z.abs() <= 1e6) {
+        return;
+    }
+    for comp in 0..n {
+        for i in 0..c.nt {
+            for k in 2..c.ns {
+                let v = out[(comp * c.nt + i) * c.ns + k];
+                assert!(
+                    v.is_finite(),
+                    "non-finite estimate {v} (component {comp}, track {i}, sample {k})"
+                );
+            }
+        }
+    }
+}
+
+fuzz_target!(|data: &[u8]| {
+    let mut b = Bytes::new(data);
+    match b.u8() % 3 {
+        0 => {
+            // alpha-beta
+            let (a, be, t) = if b.u8() % 2 == 0 {
+                (b.f64(), b.f64(), b.f64())
+            } else {
+                (
+                    b.in_range(1e-4, 1.99),
+                    b.in_range(1e-6, 1.0),
+                    b.in_range(1e-3, 1e3),
+                )
+            };
+            let c = case(&mut b);
+            let params = [(a, be, t)];
+            if std::env::var("FUZZ_DEBUG").is_ok() {
+                eprintln!("alpha-beta params {a:e} {be:e} {t:e}");
+            }
+            let f = |m: &Measurements<'_, f64>, st: &mut [TrackState], o: &mut [f64], par: bool| {
+                filter_ab(&params, c.init, m, st, o, None, par, None)
+            };
+            if let Some(out) = run2(&c, 2, &f) {
+                let stable = a > 0.0 && be > 0.0 && 2.0 * a + be < 4.0 - 1e-9;
+                if stable && (1e-3..=1e3).contains(&t) && (a * be).is_finite() {
+                    check_finite(&c, 2, &out);
+                }
+            }
+        }
+        _ => {
+            // general n = 3, m = 1
+            let t = b.in_range(1e-2, 1e2);
+            let mut phi = [[1.0, t, t * t / 2.0], [0.0, 1.0, t], [0.0, 0.0, 1.0]];
+            if b.u8() % 4 == 0 {
+                for row in phi.iter_mut() {
+                    for x in row.iter_mut() {
+                        *x = b.f64();
+                    }
+                }
+            }
+            let k = [[b.f64()], [b.f64()], [b.f64()]];
+            if std::env::var("FUZZ_DEBUG").is_ok() {
+                eprintln!("general phi {phi:?} k {k:?} t {t:e}");
+            }
+            let g = Gains::<3, 1> {
+                phi,
+                h: [[1.0, 0.0, 0.0]],
+                k,
+                h_pinv: [[1.0], [0.0], [0.0]],
+                t,
+            };
+            let c = case(&mut b);
+            let gains = [g];
+            let f = |m: &Measurements<'_, f64>, st: &mut [TrackState], o: &mut [f64], par: bool| {
+                filter_general(&gains, c.init, m, st, o, None, par, None)
+            };
+            let _ = run2(&c, 3, &f);
+        }
+    }
+});
