@@ -1,6 +1,7 @@
 """Peak memory of filtering: with the input and output already in memory, a
 run may add at most 64 MiB beyond its other output, the final per-track
-state (``result.state``, 8 float64 per track) (issue: peak RSS <= input +
+state (``result.state``, ``abkit._abkit.STATE_WIDTH`` float64 per track, and
+the per-track counts ``n_dropped``/``n_restarts``, 2 int64 per track) (issue: peak RSS <= input +
 output + 64 MiB). Measured in a subprocess from /proc (VmHWM), Linux only."""
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ f.run(z, out=out, threads=1)
 g = abkit.FixedGainFilter([[1, 1], [0, 1]], [[1, 0]], [[0.5], [0.2]])
 g.run(z, out=out)
 peak = rss('VmHWM')
-print((peak - before - shape[0] * 64) / 2**20)  # minus one FilterState (8 float64 per track)
+per_track = 8 * int(abkit._abkit.STATE_WIDTH) + 16  # one FilterState + the two int64 counts
+print((peak - before - shape[0] * per_track) / 2**20)
 """
 
 
