@@ -18,6 +18,7 @@ __all__ = [
     "check_open_interval",
     "check_shape",
     "check_symmetric",
+    "aligned_state",
 ]
 
 
@@ -122,3 +123,11 @@ def check_symmetric(name: str, arr: np.ndarray, rtol: float = 1e-10) -> None:
     asym = float(np.max(np.abs(arr - arr.T))) if arr.size else 0.0
     if asym > rtol * float(np.max(np.abs(arr))):
         raise ValueError(f"{name} must be symmetric, got max |{name} - {name}.T| = {asym:.3g}")
+
+
+def aligned_state(state: dict) -> dict:
+    """An object's pickled ``__dict__`` with every array C-contiguous and
+    aligned (``__setstate__`` helper): arrays rebuilt from out-of-band pickle
+    buffers, as dask.distributed sends them, may be misaligned, and the Rust
+    bindings take aligned contiguous arrays only."""
+    return {k: np.require(v, requirements=("C", "A")) if isinstance(v, np.ndarray) else v for k, v in state.items()}

@@ -45,7 +45,7 @@ from typing import Any, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _abkit
-from ._validate import as_float_array, check_positive
+from ._validate import aligned_state, as_float_array, check_positive
 
 __all__ = [
     "FixedGainFilter",
@@ -295,6 +295,10 @@ class FixedGainFilter:
             self._set_transient(transient, P0, Q, R, x0)
         elif transient is not None:
             raise ValueError("internal: subclasses configure transient themselves")
+
+    def __setstate__(self, state: dict) -> None:
+        # unpickling (e.g. on a dask worker): arrays aligned for the kernels
+        self.__dict__.update(aligned_state(state))
 
     # -- model ---------------------------------------------------------------
     @property
