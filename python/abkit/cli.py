@@ -8,6 +8,8 @@ abkit design abg ...
 abkit design singer ...
     Near-optimal alpha-beta-gamma design (Chen & Chui) from the noise or the
     tracking index, or analysis of given gains.
+abkit run INPUT -o OUTPUT ...
+    Filter a file of tracks (CSV, Parquet, .npy, .npz); see ``abkit run --help``.
 abkit demo
     The paper's GPS car example: design table, a simulated fleet filtered and
     smoothed (empirical vs theoretical errors, throughput), and the design
@@ -371,6 +373,10 @@ def _parser() -> argparse.ArgumentParser:
     dm.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     dm.add_argument("--missed", type=_fraction, default=0.05, help="fraction of missed fixes (default 0.05)")
     dm.set_defaults(func=_demo)
+
+    from . import _cli_run
+
+    _cli_run.add_parser(sub)
     return p
 
 
