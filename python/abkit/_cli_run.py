@@ -202,13 +202,13 @@ def _make_filter(p: argparse.ArgumentParser, a: argparse.Namespace) -> Any:
         if a.sigma_m is not None:
             p.error("--sigma-m does not apply to --filter alphabeta (use --sigma-v)")
         ns = argparse.Namespace(**vars(a))
-        d = _design_from_args(p, ns)
-        T = a.T if a.T is not None else d.T
+        dab = _design_from_args(p, ns)
+        T = a.T if a.T is not None else dab.T
         if T is None:
             if a.time is None:
                 p.error("give the sampling period -T (or timestamps with --time)")
             T = 1.0
-        return AlphaBetaFilter.from_design(d, T=T)
+        return AlphaBetaFilter.from_design(dab, T=T)
     if a.filter == "abg":
         reject(_AB_FLAGS + _SINGER_FLAGS, "abg")
         noise = [a.sigma_p, a.sigma_v, a.sigma_a, a.sigma_m]
@@ -400,7 +400,7 @@ class _Job:
                     else:
                         for c, name in enumerate(["position", "velocity", "acceleration"][:n]):
                             parts[name].reshape(z2.shape)[i0:i1, j0:j1] = r.states[c]
-                        res.reshape(z2.shape)[i0:i1, j0:j1] = r.residuals
+                        parts["residual"].reshape(z2.shape)[i0:i1, j0:j1] = r.residuals
                         if t is not None:
                             for s in counts:
                                 counts[s][i0:i1] += getattr(r, s)
@@ -452,7 +452,7 @@ class _Job:
             state = None
             names: List[List[str]] = []
             for row0, tab in reader:
-                cols = reader.columns
+                cols = reader.columns or []
                 if not names:
                     names = self._out_names(cols, tab.column_names)
                 z = np.stack([reader.values(tab, c, row0) for c in cols]) if cols else np.empty((0, tab.num_rows))
