@@ -28,7 +28,7 @@ import numpy as np
 
 from .filters import FilterResult, FilterState, FixedGainFilter
 
-__all__ = ["run", "DaskFilterResult"]
+__all__ = ["run", "filter_frame", "DaskFilterResult"]
 
 _ADVICE = "abkit.dask needs dask: install abkit[dask] (dask[array,dataframe] and distributed)"
 
@@ -52,14 +52,20 @@ def _slots(obj: Any) -> List[str]:
     return names
 
 
+def _rows_per_track(state: FilterState) -> int:
+    axes = getattr(state, "axes", None)  # a run with axes= keeps one row per track and axis
+    return int(axes) if axes else 1
+
+
 def _state_rows(state: FilterState, lo: int, hi: int) -> FilterState:
     """Tracks ``lo:hi`` of a state (per-track arrays sliced, the rest shared)."""
-    n = state.n_tracks
+    k = _rows_per_track(state)
+    rows = state._packed.shape[0]
     new = object.__new__(type(state))
     for s in _slots(state):
         v = getattr(state, s)
-        if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == n:
-            v = v[lo:hi].copy()
+        if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows:
+            v = v[lo * k:hi * k].copy()
         setattr(new, s, v)
     return new
 
@@ -69,11 +75,12 @@ def _concat_states(states: Sequence[FilterState]) -> FilterState:
     if len(states) == 1:
         return states[0]
     first = states[0]
+    rows = first._packed.shape[0]
     new = object.__new__(type(first))
     for s in _slots(first):
         vals = [getattr(st, s) for st in states]
         v0 = vals[0]
-        if isinstance(v0, np.ndarray) and v0.ndim >= 1 and v0.shape[0] == first.n_tracks:
+        if isinstance(v0, np.ndarray) and v0.ndim >= 1 and v0.shape[0] == rows:
             setattr(new, s, np.concatenate(vals, axis=0))
         else:
             setattr(new, s, v0)
@@ -260,8 +267,9 @@ def run(
     if state is not None:
         if not isinstance(state, FilterState):
             raise TypeError(f"state must be a FilterState (result.state), got {type(state).__name__}")
-        if state.n_tracks != n_tracks:
-            raise ValueError(f"state is for {state.n_tracks} tracks; z has {n_tracks}")
+        have = state._packed.shape[0] // _rows_per_track(state)
+        if have != n_tracks:
+            raise ValueError(f"state is for {have} tracks; z has {n_tracks}")
     track_chunks = z.chunks[0] if n_sample == 2 else (1,)
     if filter.n_params > 1 and len(track_chunks) > 1:
         raise ValueError("a filter with per-track parameters needs z in one chunk along the tracks "
@@ -324,3 +332,107 @@ def run(
     if return_residuals:
         residuals = da.Array(hlg, res_name, chunks=z.chunks, dtype=z.dtype)
     return DaskFilterResult(states, residuals, Delayed(fin_name, hlg))
+
+
+# -- DataFrames -----------------------------------------------------------------------
+def _frame_partition(pdf: Any, *, id: str, index_is_id: bool, kw: dict) -> Any:
+    from . import frame
+
+    if index_is_id:
+        name = pdf.index.name
+        out = frame.filter(pdf.reset_index(), id=id, **kw)
+        return out.set_index(name)
+    return frame.filter(pdf, id=id, **kw)
+
+
+def _partition_ids(pdf: Any, id: str, index_is_id: bool) -> Any:
+    s = pdf.index.to_series() if index_is_id else pdf[id]
+    return s.drop_duplicates().to_numpy()
+
+
+def _check_ids(parts: Sequence[Any], id: str) -> None:
+    seen: dict = {}
+    for i, ids in enumerate(parts):
+        for v in ids.tolist():
+            j = seen.setdefault(v, i)
+            if j != i:
+                raise ValueError(
+                    f"track {id}={v!r} is in partitions {j} and {i}: filter_frame needs every track within one "
+                    f"partition; repartition by id first, e.g. ddf = ddf.shuffle(on={id!r}) or "
+                    f"ddf = ddf.set_index({id!r})"
+                )
+
+
+def filter_frame(ddf: Any, *, id: str, check: bool = True, **kw: Any) -> Any:
+    """:func:`abkit.frame.filter` on every partition of a Dask DataFrame.
+
+    Parameters
+    ----------
+    ddf : dask.dataframe.DataFrame
+        Long format (one row per report), partitioned by track id: every
+        track's rows within one partition (e.g. after ``ddf.shuffle(on=id)``
+        or ``ddf.set_index(id)``; with ``set_index`` the id is the index).
+    id : str
+        The track id column (or the index name after ``set_index``).
+    check : bool, optional
+        Check that no track spans two partitions (default). The check is
+        part of the graph (it reads the id column of every partition once)
+        and raises ``ValueError`` when the result is computed. When the id is
+        the index with known divisions, no check is needed and none is made.
+    **kw
+        ``columns``, ``filter``, ``time``, ``max_gap``, ``on_duplicate``,
+        ``init``, ``return_residuals``, ``suffixes`` of
+        :func:`abkit.frame.filter`.
+
+    Returns
+    -------
+    dask.dataframe.DataFrame
+        Lazy: the partitions with the estimate columns added (rows in each
+        partition's order). The ``attrs`` totals of the pandas path are not
+        carried (partitions are separate frames).
+
+    Raises
+    ------
+    ValueError
+        Unknown columns (checked on the metadata up front); at compute time,
+        a track found in two partitions.
+
+    Examples
+    --------
+    >>> import pandas as pd, dask, dask.dataframe as dd
+    >>> from abkit import AlphaBetaFilter
+    >>> df = pd.DataFrame({"id": [1, 1, 2, 2, 1], "t": [0.0, 1.0, 0.0, 1.0, 2.0], "x": [0.0, 1.0, 5.0, 7.0, 2.0]})
+    >>> ddf = dd.from_pandas(df, npartitions=2).shuffle(on="id")
+    >>> out = filter_frame(ddf, id="id", time="t", columns="x", filter=AlphaBetaFilter(0.5, 0.2, 1.0))
+    >>> with dask.config.set(scheduler="synchronous"):
+    ...     got = out.compute().sort_values(["id", "t"])
+    >>> got["x_vel"].round(6).tolist()
+    [nan, 1.0, 1.0, nan, 2.0]
+    """
+    _import_dask()
+    import dask.dataframe as dd
+    from dask import delayed
+
+    from . import frame
+
+    if "filter" not in kw:
+        raise TypeError("filter_frame() missing the keyword argument 'filter'")
+    if "return_summary" in kw:
+        raise ValueError("return_summary is not available with Dask (partitions are separate frames)")
+    meta = ddf._meta
+    index_is_id = id not in meta.columns and meta.index.name == id
+    if not index_is_id and id not in meta.columns:
+        raise ValueError(f"id: no column {id!r} in the DataFrame (columns: {', '.join(map(repr, meta.columns))})")
+    # the metadata of the result: the filter run on the empty frame (checks columns and options)
+    meta_out = _frame_partition(meta, id=id, index_is_id=index_is_id, kw=kw)
+    need_check = check and not (index_is_id and ddf.known_divisions)
+    args: List[Any] = []
+    if need_check:
+        ids = ddf.map_partitions(_partition_ids, id, index_is_id, meta=object).to_delayed()
+        args.append(delayed(_check_ids)(ids, id))
+
+    def part(pdf: Any, *ok: Any) -> Any:
+        return _frame_partition(pdf, id=id, index_is_id=index_is_id, kw=kw)
+
+    del frame, dd
+    return ddf.map_partitions(part, *args, meta=meta_out, align_dataframes=False)
