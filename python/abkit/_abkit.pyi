@@ -35,6 +35,8 @@ __all__ = [
     "ALPHABETA_FIELDS",
     "SINGER_ROW_WIDTH",
     "STATE_WIDTH",
+    "MAX_STATES",
+    "filter_tracks",
     "__version__",
 ]
 
@@ -44,6 +46,7 @@ ABG_COLOURED_FIELDS: list[str]
 ABG_DECOUPLED_WIDTH: int
 ALPHABETA_FIELDS: list[str]
 STATE_WIDTH: int
+MAX_STATES: int
 SINGER_ROW_WIDTH: int
 
 _F64 = npt.NDArray[np.float64]
@@ -96,6 +99,26 @@ def filter_fixed_gain(
     threads: int | None = None,
     smoother_gain: _F64 | None = None,
     lag: int | None = None,
+) -> None: ...
+def filter_tracks(
+    z: _FArr,
+    t: _F64 | None,
+    offsets: npt.NDArray[np.int64],
+    n: int,
+    m: int,
+    law: str,
+    params: _F64,
+    h: _F64,
+    h_pinv: _F64,
+    t_nominal: float,
+    init: str,
+    max_gap: float | None,
+    drop_duplicates: bool,
+    state: _F64,
+    out: _FArr,
+    counts: npt.NDArray[np.int64],
+    resid: _FArr | None = None,
+    threads: int | None = None,
 ) -> None: ...
 def kalman_gain_sequence(
     n: int, m: int, phi: _F64, h: _F64, q: _F64, r: _F64, p0: _F64, steps: int

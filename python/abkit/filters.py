@@ -58,7 +58,7 @@ __all__ = [
 ]
 
 _W = int(_abkit.STATE_WIDTH)
-_NMAX = _W - 2
+_NMAX = int(_abkit.MAX_STATES)
 _ACCEPTED = (np.dtype(np.float32), np.dtype(np.float64))
 
 #: Alpha-beta-gamma gain conventions: the filter-form gain vector for
@@ -84,14 +84,25 @@ class FilterState:
     phase : ndarray of int, shape (n_tracks,)
         0: no valid sample yet; 1: one valid sample held (two-point start);
         2: running.
+    t_last : ndarray, shape (n_tracks,)
+        Timestamp of the last kept sample (runs with ``t``), NaN otherwise.
+    axes : int or None
+        The spatial axes of a run with ``axes=`` (rows are then
+        ``track * axes + axis``).
     """
 
-    __slots__ = ("_packed", "n", "single")
+    __slots__ = ("_packed", "n", "single", "axes")
 
-    def __init__(self, packed: np.ndarray, n: int, single: bool):
+    def __init__(self, packed: np.ndarray, n: int, single: bool, axes: Optional[int] = None):
         self._packed = packed
         self.n = n
         self.single = single
+        self.axes = axes
+
+    @property
+    def t_last(self) -> np.ndarray:
+        t = self._packed[:, _NMAX + 2].copy()
+        return t[0] if self.single and self.axes is None else t
 
     @property
     def n_tracks(self) -> int:
@@ -108,7 +119,7 @@ class FilterState:
         return p[0] if self.single else p
 
     def copy(self) -> "FilterState":
-        return FilterState(self._packed.copy(), self.n, self.single)
+        return FilterState(self._packed.copy(), self.n, self.single, self.axes)
 
     def __repr__(self) -> str:
         return f"FilterState(n_tracks={self.n_tracks}, n={self.n})"
@@ -129,14 +140,36 @@ class FilterResult:
         start-up. Only with ``return_residuals=True``.
     state : FilterState
         Final per-track state, for ``run(..., state=...)``.
+    offsets : ndarray of int64 or None
+        The ``offsets`` of a ragged run (the layout of ``states``), else None.
+    n_dropped, n_restarts : ndarray of int64, shape (n_tracks,)
+        Per track: samples dropped as duplicates (``on_duplicate="drop"``)
+        and restarts after a gap (``max_gap``); zeros when not applicable.
+    t : ndarray or None
+        The timestamps (float64) of a run with ``t``, else None.
     """
 
-    __slots__ = ("states", "residuals", "state")
+    __slots__ = ("states", "residuals", "state", "offsets", "n_dropped", "n_restarts", "t")
 
-    def __init__(self, states: np.ndarray, residuals: Optional[np.ndarray], state: FilterState):
+    def __init__(
+        self,
+        states: np.ndarray,
+        residuals: Optional[np.ndarray],
+        state: FilterState,
+        *,
+        offsets: Optional[np.ndarray] = None,
+        n_dropped: Optional[np.ndarray] = None,
+        n_restarts: Optional[np.ndarray] = None,
+        t: Optional[np.ndarray] = None,
+    ):
         self.states = states
         self.residuals = residuals
         self.state = state
+        self.offsets = offsets
+        nt = state._packed.shape[0] // (state.axes or 1)
+        self.n_dropped = np.zeros(nt, dtype=np.int64) if n_dropped is None else n_dropped
+        self.n_restarts = np.zeros(nt, dtype=np.int64) if n_restarts is None else n_restarts
+        self.t = t
 
     @property
     def position(self) -> np.ndarray:
@@ -345,9 +378,12 @@ class FixedGainFilter:
 
     def _initial_state(self, init: Any, state: Optional[FilterState], n_tracks: int) -> Tuple[np.ndarray, str]:
         packed = np.zeros((n_tracks, _W))
+        packed[:, _NMAX + 2 :] = np.nan  # no timestamps known
         if state is not None:
             if not isinstance(state, FilterState):
                 raise TypeError(f"state must be a FilterState (result.state), got {type(state).__name__}")
+            if state.axes is not None:
+                raise ValueError(f"state is from a run with axes={state.axes}; pass the same axes=")
             if state.n != self.n or state.n_tracks != n_tracks:
                 raise ValueError(f"state is for {state.n_tracks} tracks of {state.n} states; z has {n_tracks} tracks and the filter {self.n} states")
             packed[:] = state._packed
@@ -367,6 +403,27 @@ class FixedGainFilter:
             packed[:, : self.n] = x0
             packed[:, _NMAX] = 2
         return packed, "first"
+
+    #: Gain law of the time-varying kernel: (kind, parameter rows) or None
+    #: (a filter that cannot build ``Phi(dt)``).
+    _tv_law: Optional[Tuple[str, np.ndarray]] = None
+
+    @property
+    def gain_schedule(self) -> str:
+        """``"design"``: with timestamps, the steady-state design for each
+        step ``dt`` (filters built from noise statistics); ``"fixed"``: the
+        gains stay fixed, the prediction and rate gains use ``dt``."""
+        law = self._tv_law
+        return "design" if law is not None and law[0] in ("ab-design", "abg-design", "singer") else "fixed"
+
+    def _time_law(self) -> Tuple[str, np.ndarray]:
+        if self._tv_law is None:
+            raise ValueError(
+                f"t= needs a filter that knows its continuous model to build Phi(dt): "
+                f"AlphaBetaFilter, AlphaBetaGammaFilter or abkit.singer.filter(...); "
+                f"this {type(self).__name__} has an arbitrary Phi"
+            )
+        return self._tv_law
 
     def _kinematic_like(self) -> bool:
         h = self._h
@@ -440,6 +497,11 @@ class FixedGainFilter:
         self,
         z: Any,
         *,
+        t: Any = None,
+        offsets: Any = None,
+        axes: Optional[int] = None,
+        max_gap: Optional[float] = None,
+        on_duplicate: str = "raise",
         init: Any = "two-point",
         state: Optional[FilterState] = None,
         out: Optional[np.ndarray] = None,
@@ -454,6 +516,34 @@ class FixedGainFilter:
             ``(n_samples,)`` or ``(n_tracks, n_samples)`` (scalar measurements),
             ``(n_samples, m)`` or ``(n_tracks, n_samples, m)`` (vector);
             float32 or float64 (kept), any strides; NaN = missed detection.
+            With ``offsets``: flat, ``(N,)`` or ``(N, m)``. With ``axes``:
+            a trailing spatial axis of that length (before ``m``).
+        t : array_like, optional
+            Timestamps (float64; float32 and integers are converted) of the
+            sample shape of ``z`` (a shared ``(n_samples,)`` vector is
+            accepted for ``(n_tracks, n_samples)``). The step
+            ``dt_k = t_k - t_{k-1}`` replaces ``T``: filters designed from
+            noise (``gain_schedule == "design"``) use the steady-state
+            design for each ``dt_k``; filters given gains keep them and
+            scale the prediction and rate gains by ``dt_k``. A general
+            :class:`FixedGainFilter` cannot build ``Phi(dt)`` (ValueError).
+            See ``docs/tracks.md``.
+        offsets : array_like of int, optional
+            Ragged batch (Arrow list layout): ``n_tracks + 1`` offsets,
+            ``offsets[0] == 0``, non-decreasing, ``offsets[-1] == N``;
+            track ``i`` is ``z[offsets[i]:offsets[i+1]]``. Estimates are in
+            the same flat layout, ``(n, N)``. Equal to running each track
+            alone.
+        axes : {2, 3}, optional
+            Spatial axes, each filtered independently with the same design;
+            estimates get the same trailing axis.
+        max_gap : float, optional
+            Restart a track (re-initialise it by ``init`` at the sample)
+            after a step ``t_k - t_{k-1} > max_gap``. Needs ``t``.
+        on_duplicate : {"raise", "drop"}, optional
+            A timestamp not after the last kept one: ``"raise"`` a
+            ValueError naming the track and sample, or ``"drop"`` the sample
+            (NaN estimates and residual; counted in ``result.n_dropped``).
         init : {"two-point", "first"} or array_like, optional
             Start-up (see the module docs). Ignored for tracks already running
             in ``state``.
@@ -491,12 +581,22 @@ class FixedGainFilter:
             Wrong shapes, ``out`` of wrong shape/dtype or overlapping ``z``,
             bad ``init``/``state``/``threads``.
         """
+        if t is not None or offsets is not None or axes is not None or max_gap is not None or on_duplicate != "raise":
+            if self._transient is not None:
+                raise ValueError("transient='kalman' does not support t, offsets, axes, max_gap or on_duplicate")
+            from . import _tracks
+
+            kw = dict(t=t, offsets=offsets, max_gap=max_gap, on_duplicate=on_duplicate, init=init, state=state, out=out, return_residuals=return_residuals, threads=threads)
+            if axes is not None:
+                return _tracks.run_axes(self, z, axes, **kw)  # type: ignore[arg-type]
+            return _tracks.run_tracks(self, z, **kw)  # type: ignore[arg-type]
         if self._transient is not None:
             if state is not None:
                 raise ValueError("transient='kalman' runs whole tracks; streaming with state= is not supported")
             kres = self._transient_filter.run(z, out=out, return_residuals=return_residuals, threads=threads)
             z3, (n_tracks, _), single = self._prepare_z(z)
             packed = np.zeros((n_tracks, _W))
+            packed[:, _NMAX + 2 :] = np.nan
             last = kres.states[..., -1] if kres.states.shape[-1] else np.zeros((self.n,) + ((n_tracks,) if not single else ()))
             packed[:, : self.n] = np.asarray(last).reshape(self.n, n_tracks).T
             packed[:, _NMAX] = 2
@@ -676,6 +776,7 @@ class AlphaBetaFilter(FixedGainFilter):
         super().__init__(phi, np.array([[1.0, 0.0]]), k, t, allow_unstable=True)
         self.allow_unstable = allow_unstable
         self._params = np.ascontiguousarray(np.stack([a, b, t], axis=-1))
+        self._tv_law = ("ab-fixed", np.stack([a, b], axis=-1))
         self.alpha = a[0] if P == 1 else a
         self.beta = b[0] if P == 1 else b
         self.T = t[0] if P == 1 else t
@@ -696,12 +797,64 @@ class AlphaBetaFilter(FixedGainFilter):
 
     @classmethod
     def from_design(cls, design: Any, T: Optional[Any] = None, **kw: Any) -> "AlphaBetaFilter":
-        """Filter from an :class:`abkit.AlphaBeta` design (scalar or 1-D)."""
+        """Filter from an :class:`abkit.AlphaBeta` design (scalar or 1-D).
+
+        A Kalman design (``design.kalman_optimal``) keeps its noise model:
+        with timestamps the filter uses the Kalman design at each step
+        (``gain_schedule == "design"``, tracking index
+        ``lambda = 2 sqrt(r) (dt / T)^2``).
+        """
         if T is None:
             T = design.T
             if T is None:
                 raise ValueError("T must be given: the design was made without a sampling period")
-        return cls(design.alpha, design.beta, T, **kw)
+        f = cls(design.alpha, design.beta, T, **kw)
+        if bool(np.all(design.kalman_optimal)):
+            lam = 2.0 * np.sqrt(np.atleast_1d(np.asarray(design.r, dtype=float)))
+            t = np.atleast_1d(np.asarray(T, dtype=float))
+            ratio = np.broadcast_to(lam / (t * t), (f.n_params,))
+            f._tv_law = ("ab-design", np.ascontiguousarray(ratio)[:, None])
+        return f
+
+    @classmethod
+    def from_noise(cls, sigma_w: Any, sigma_v: Any, T: Any, **kw: Any) -> "AlphaBetaFilter":
+        r"""The steady-state Kalman filter of the white-acceleration model.
+
+        Gains from :func:`abkit.alphabeta.from_noise` (SNR
+        ``r = ((sigma_w T^2 / 2) / sigma_v)^2``). With timestamps ``t`` the
+        filter uses, at every step, the design for that ``dt_k``
+        (``gain_schedule == "design"``; see ``docs/tracks.md``).
+
+        Parameters
+        ----------
+        sigma_w : float or array_like
+            Rms acceleration noise (> 0).
+        sigma_v : float or array_like
+            Rms measurement noise (> 0).
+        T : float or array_like
+            Nominal sampling period (> 0).
+        **kw
+            Passed to the constructor (``allow_unstable``, ``transient``, ...).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from abkit import AlphaBetaFilter
+        >>> f = AlphaBetaFilter.from_noise(3.2, 32.0, 0.1)
+        >>> f.gain_schedule
+        'design'
+        >>> r = f.run(np.array([0.0, 1.0, 2.5, 3.0]), t=[0.0, 0.1, 0.25, 0.3])
+        >>> r.position.shape
+        (4,)
+        """
+        from . import alphabeta as _ab
+
+        d = _ab.from_noise(sigma_w, sigma_v, T)
+        f = cls(d.alpha, d.beta, T, **kw)
+        sw, sv = (np.atleast_1d(as_float_array(n, v)) for n, v in (("sigma_w", sigma_w), ("sigma_v", sigma_v)))
+        ratio = np.broadcast_to(sw / sv, (f.n_params,))
+        f._tv_law = ("ab-design", np.ascontiguousarray(ratio)[:, None])
+        return f
 
     def _kernel(self, z3: np.ndarray, packed: np.ndarray, init: str, out3: np.ndarray, res3: Optional[np.ndarray], threads: Optional[int], sgain: Optional[np.ndarray] = None, lag: Optional[int] = None) -> None:
         _abkit.filter_alphabeta(z3, self._params, init, packed, out3, res3, threads, sgain, lag)
@@ -801,11 +954,53 @@ class AlphaBetaGammaFilter(FixedGainFilter):
         k = np.stack([a, b / t, c * g / (t * t)], axis=-1)[:, :, None]
         super().__init__(phi, np.array([[1.0, 0.0, 0.0]]), k, t, allow_unstable=allow_unstable)
         self.convention = convention
+        self._tv_law = ("abg-fixed", np.stack([a, b, c * g], axis=-1))
         self.alpha = a[0] if P == 1 else a
         self.beta = b[0] if P == 1 else b
         self.gamma = g[0] if P == 1 else g
         self.T = t[0] if P == 1 else t
         self._set_transient(transient, P0, Q, R, x0)
+
+
+    @classmethod
+    def from_noise(
+        cls, sigma_p: float, sigma_v: float, sigma_a: float, sigma_m: float, T: float, *, convention: str = "standard", **kw: Any
+    ) -> "AlphaBetaGammaFilter":
+        r"""The limiting Kalman alpha-beta-gamma filter of Chen & Chui's noise model.
+
+        Gains from :func:`abkit.abg.from_noise` (process noise variances
+        ``Q = diag(sigma_p, sigma_v, sigma_a)`` per step, measurement
+        variance ``sigma_m``) at period ``T``. With timestamps ``t`` the
+        filter uses, at every step, the design at ``h = dt_k``
+        (``gain_schedule == "design"``; see ``docs/tracks.md``).
+
+        Parameters
+        ----------
+        sigma_p, sigma_v, sigma_a : float
+            Process noise variances (>= 0; ``sigma_a > 0``).
+        sigma_m : float
+            Measurement noise variance (> 0).
+        T : float
+            Nominal sampling period (> 0).
+        convention : {"standard", "chen-chui", "ghk"}
+            Convention of the stored gains (the filter is the same).
+
+        Examples
+        --------
+        >>> from abkit import AlphaBetaGammaFilter
+        >>> f = AlphaBetaGammaFilter.from_noise(0.0, 0.0, 0.1, 1.0, 1.0)
+        >>> f.gain_schedule, f.convention
+        ('design', 'standard')
+        """
+        from . import abg as _abg
+
+        for name, v in (("sigma_p", sigma_p), ("sigma_v", sigma_v), ("sigma_a", sigma_a), ("sigma_m", sigma_m), ("T", T)):
+            if np.ndim(v) != 0:
+                raise ValueError(f"{name} must be a scalar")
+        d = _abg.from_noise(sigma_p, sigma_v, sigma_a, sigma_m, h=T, convention=convention)
+        f = cls(d.alpha, d.beta, d.gamma, T, convention=convention, **kw)
+        f._tv_law = ("abg-design", np.array([[float(sigma_p), float(sigma_v), float(sigma_a), float(sigma_m)]]))
+        return f
 
 
 class Tracker:

@@ -58,7 +58,7 @@ from . import _abkit
 from ._results import out_value
 from ._validate import as_float_array, broadcast, check_positive
 
-__all__ = ["model", "steady_state", "SingerSteadyState", "METHODS"]
+__all__ = ["model", "steady_state", "tracking_filter", "SingerSteadyState", "METHODS"]
 
 ArrayLike = Any
 FloatOrArray = Union[float, np.ndarray]
@@ -414,3 +414,53 @@ def steady_state(
         method_used=str(names[0]) if shape == () else sh(names, ()),
     )
     return res
+
+
+def tracking_filter(
+    T: float,
+    tau: Optional[float] = None,
+    sigma_m: Optional[float] = None,
+    sigma_pos: Optional[float] = None,
+    *,
+    alpha: Optional[float] = None,
+    q: Optional[float] = None,
+    method: str = "auto",
+) -> Any:
+    r"""The steady-state Singer filter (position-only) as a
+    :class:`abkit.FixedGainFilter` that knows its model.
+
+    Parameters are those of :func:`steady_state` (scalars; position-only
+    measurements). The filter runs ``Phi`` and ``K`` of the steady state at
+    ``T``; with timestamps ``t`` it uses at every step the steady state for
+    that ``dt_k`` (``theta = dt_k / tau``, ``q_N = q dt_k^5 / sigma_pos^2``;
+    closed form with numeric fallback, cached per distinct ``dt``), so its
+    ``gain_schedule`` is ``"design"``.
+
+    Returns
+    -------
+    FixedGainFilter
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from abkit import singer
+    >>> f = singer.tracking_filter(1.0, tau=20.0, sigma_m=1.0, sigma_pos=10.0)
+    >>> f.gain_schedule, f.n
+    ('design', 3)
+    >>> r = f.run(np.array([0.0, 1.0, 2.0, 4.0]), t=[0.0, 1.0, 2.0, 3.5])
+    >>> r.states.shape
+    (3, 4)
+    """
+    from .filters import FixedGainFilter
+
+    for name, v in (("T", T), ("tau", tau), ("sigma_m", sigma_m), ("sigma_pos", sigma_pos), ("alpha", alpha), ("q", q)):
+        if v is not None and np.ndim(v) != 0:
+            raise ValueError(f"{name} must be a scalar")
+    ss = steady_state(T, tau, sigma_m, sigma_pos, method=method, alpha=alpha, q=q)
+    ta = float(_resolve_tau(tau, alpha))
+    kind, val = _resolve_q(sigma_m, q, np.asarray(ta))
+    qd = 2.0 * float(val) ** 2 / ta if kind == "sigma_m" else float(val)
+    f = FixedGainFilter(ss.Phi, ss.H, ss.K, T)
+    f._tv_law = ("singer", np.array([[ta, qd, float(sigma_pos)]]))  # type: ignore[arg-type]
+    f._kinematic = True
+    return f

@@ -153,7 +153,7 @@ pub fn kalman_uv_from_lambda(lambda: f64) -> (f64, f64) {
 
 /// `alpha = 1 - u^2 = v (1 + u)`, evaluated in the form that rounds correctly
 /// (never above 1).
-fn kalman_alpha(u: f64, v: f64) -> f64 {
+pub fn kalman_alpha(u: f64, v: f64) -> f64 {
     if u < 0.5 {
         1.0 - u * u
     } else {

@@ -19,6 +19,17 @@ pub enum Error {
     /// Input arrays have inconsistent lengths.
     #[error("array length mismatch: {0}")]
     Shape(String),
+    /// Bad data at a given track and sample (non-increasing or non-finite
+    /// timestamps, a design that fails at a sample's step, ...).
+    #[error("track {track}, sample {sample}: {msg}")]
+    Data {
+        /// Track index.
+        track: usize,
+        /// Sample index within the track (within this call).
+        sample: usize,
+        /// What is wrong.
+        msg: String,
+    },
     /// A well-formed problem has no (stabilising) solution, or none that can
     /// be computed reliably (maps to `numpy.linalg.LinAlgError`).
     #[error("{0}")]

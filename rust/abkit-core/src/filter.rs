@@ -65,8 +65,9 @@ impl IoFloat for f32 {
     }
 }
 
-/// `f64`s in a [`TrackState`]: the state, the phase and the gap counter.
-pub const STATE_WIDTH: usize = MAX_STATES + 2;
+/// `f64`s in a [`TrackState`]: the state, the phase, the gap counter and
+/// the two timestamps of the irregular-time kernels ([`crate::ragged`]).
+pub const STATE_WIDTH: usize = MAX_STATES + 4;
 
 /// Per-track filter state carried between calls (streaming). `repr(C)`:
 /// exactly [`STATE_WIDTH`] `f64`s, so a `(n_tracks, STATE_WIDTH)` `f64`
@@ -82,6 +83,12 @@ pub struct TrackState {
     pub phase: f64,
     /// In phase 1, samples since the held valid sample.
     pub since: f64,
+    /// Timestamp of the last (kept) sample, NaN when none is known (only the
+    /// irregular-time kernels of [`crate::ragged`] read or write it).
+    pub t_last: f64,
+    /// In phase 1 with timestamps, the timestamp of the held valid sample
+    /// (NaN when unknown: the velocity then uses `since` and `T`).
+    pub t_held: f64,
 }
 
 impl Default for TrackState {
@@ -90,6 +97,8 @@ impl Default for TrackState {
             x: [0.0; MAX_STATES],
             phase: 0.0,
             since: 0.0,
+            t_last: f64::NAN,
+            t_held: f64::NAN,
         }
     }
 }

@@ -25,6 +25,10 @@
 //!   state.
 //! - [`smooth`]: steady-state fixed-interval (RTS) and fixed-lag smoothing.
 //! - [`kalman`]: the time-varying Kalman recursion (paper 002), batched.
+//! - [`irregular`]: gain laws for irregular sampling (the step model as a
+//!   function of `dt`: per-dt steady-state designs or fixed gains).
+//! - [`ragged`]: the track kernel over ragged batches (Arrow offsets) with
+//!   optional timestamps, gaps and duplicates.
 
 // No unwrap/expect outside tests: nothing derived from user data may panic.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
@@ -34,7 +38,9 @@ pub mod alphabeta;
 pub mod batch;
 mod error;
 pub mod filter;
+pub mod irregular;
 pub mod kalman;
+pub mod ragged;
 pub mod riccati;
 pub mod singer;
 pub mod singer_closed;

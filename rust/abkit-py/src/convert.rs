@@ -14,7 +14,7 @@ pyo3::import_exception!(numpy.linalg, LinAlgError);
 pub(crate) fn to_pyerr((index, err): (usize, Error)) -> PyErr {
     match err {
         Error::Domain { .. } => PyValueError::new_err(format!("{err} (at flat index {index})")),
-        Error::Shape(_) => PyValueError::new_err(err.to_string()),
+        Error::Shape(_) | Error::Data { .. } => PyValueError::new_err(err.to_string()),
         Error::NoSolution(_) => LinAlgError::new_err(format!("{err} (at flat index {index})")),
     }
 }
@@ -22,7 +22,9 @@ pub(crate) fn to_pyerr((index, err): (usize, Error)) -> PyErr {
 /// Core errors of a single (non-batch) problem.
 pub(crate) fn to_pyerr_single(err: Error) -> PyErr {
     match err {
-        Error::Domain { .. } | Error::Shape(_) => PyValueError::new_err(err.to_string()),
+        Error::Domain { .. } | Error::Shape(_) | Error::Data { .. } => {
+            PyValueError::new_err(err.to_string())
+        }
         Error::NoSolution(_) => LinAlgError::new_err(err.to_string()),
     }
 }

@@ -22,7 +22,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 pub(crate) use abkit_core::filter::STATE_WIDTH;
 
-fn parse_init(init: &str) -> PyResult<Init> {
+pub(crate) fn parse_init(init: &str) -> PyResult<Init> {
     match init {
         "first" => Ok(Init::First),
         "two-point" => Ok(Init::TwoPoint),
@@ -93,7 +93,10 @@ fn pool(k: usize) -> PyResult<Arc<rayon::ThreadPool>> {
 
 /// Run `f(parallel)` per the `threads` argument: None = rayon's global pool,
 /// 1 = this thread, k = a cached pool of k threads.
-fn with_threads<R: Send>(threads: Option<usize>, f: impl FnOnce(bool) -> R + Send) -> PyResult<R> {
+pub(crate) fn with_threads<R: Send>(
+    threads: Option<usize>,
+    f: impl FnOnce(bool) -> R + Send,
+) -> PyResult<R> {
     match threads {
         None => Ok(f(true)),
         Some(0) => Err(PyValueError::new_err("threads must be >= 1 or None")),

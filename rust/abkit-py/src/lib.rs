@@ -40,6 +40,7 @@ mod filter;
 mod kalman;
 mod riccati;
 mod singer;
+mod tracks;
 
 use pyo3::prelude::*;
 
@@ -64,6 +65,8 @@ mod _abkit {
     use super::riccati::{riccati_kalman_steady_state, riccati_solve_dare};
     #[pymodule_export]
     use super::singer::{singer_model, singer_steady_state};
+    #[pymodule_export]
+    use super::tracks::filter_tracks_py;
     use pyo3::prelude::*;
 
     #[pymodule_init]
@@ -76,6 +79,7 @@ mod _abkit {
         m.add("ABG_DECOUPLED_WIDTH", abkit_core::abg::DECOUPLED_WIDTH)?;
         m.add("ALPHABETA_FIELDS", abkit_core::alphabeta::FIELDS.to_vec())?;
         m.add("STATE_WIDTH", super::filter::STATE_WIDTH)?;
+        m.add("MAX_STATES", abkit_core::filter::MAX_STATES)?;
         m.add("SINGER_ROW_WIDTH", abkit_core::singer::ROW_WIDTH)?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))?;
         Ok(())

@@ -1,0 +1,237 @@
+"""Real-world tracks: timestamps, gaps, duplicates, ragged batches and
+spatial axes for every filter's ``run`` (the machinery behind the keywords
+``t``, ``offsets``, ``axes``, ``max_gap`` and ``on_duplicate``; see
+``docs/tracks.md``).
+
+The filtering itself is the Rust track kernel (``abkit-core`` modules
+``ragged`` and ``irregular``); this module validates the arguments, views
+the measurements and timestamps without copying them and assembles the
+result.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Optional, Tuple
+
+import numpy as np
+
+from . import _abkit
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .filters import FilterResult, FilterState, FixedGainFilter
+
+_W = int(_abkit.STATE_WIDTH)
+_NMAX = int(_abkit.MAX_STATES)
+#: Column of the last timestamp in a packed state row.
+T_LAST = _NMAX + 2
+#: Column of the held timestamp (two-point start) in a packed state row.
+T_HELD = _NMAX + 3
+ON_DUPLICATE = ("raise", "drop")
+
+
+def check_offsets(offsets: Any, n_total: int) -> np.ndarray:
+    """Validate Arrow-style offsets; returns them as contiguous int64."""
+    a = np.asarray(offsets)
+    if a.dtype.kind not in "iu" or a.dtype == np.bool_:
+        raise TypeError(f"offsets must be an integer array, got dtype {a.dtype}")
+    if a.ndim != 1 or a.size < 1:
+        raise ValueError(f"offsets must be a 1-D array of n_tracks + 1 integers, got shape {a.shape}")
+    if a.dtype.kind == "u" and a.size and int(a.max()) > np.iinfo(np.int64).max:
+        raise ValueError("offsets do not fit in int64")
+    a = np.ascontiguousarray(a, dtype=np.int64)
+    if a[0] != 0:
+        raise ValueError(f"offsets must start at 0, got offsets[0] = {int(a[0])}")
+    d = np.diff(a)
+    if d.size and (d < 0).any():
+        i = int(np.argmax(d < 0)) + 1
+        raise ValueError(f"offsets must be non-decreasing: offsets[{i}] = {int(a[i])} < offsets[{i - 1}] = {int(a[i - 1])}")
+    if a[-1] != n_total:
+        raise ValueError(f"offsets must end at the number of samples of z ({n_total}), got offsets[-1] = {int(a[-1])}")
+    return a
+
+
+def check_t(t: Any, shape: Tuple[int, ...]) -> np.ndarray:
+    """Timestamps as float64 of the sample shape (float32/integers are
+    converted, float64 is used as is; a shared ``(n_samples,)`` vector is
+    broadcast to all tracks without a copy)."""
+    a = t if isinstance(t, np.ndarray) else np.asarray(t)
+    if a.dtype.kind not in "iuf" or a.dtype == np.bool_:
+        raise TypeError(f"t must be a real (float64) array of timestamps, got dtype {a.dtype}")
+    if a.dtype != np.float64:
+        a = a.astype(np.float64)
+    if a.shape != shape:
+        if len(shape) == 2 and a.shape == shape[1:]:
+            a = np.broadcast_to(a, shape)
+        else:
+            raise ValueError(f"t must have the sample shape of z {shape}, got {a.shape}")
+    return a
+
+
+def check_max_gap(max_gap: Any, has_t: bool) -> Optional[float]:
+    if max_gap is None:
+        return None
+    if not has_t:
+        raise ValueError("max_gap needs timestamps t")
+    if isinstance(max_gap, (bool, np.bool_)) or not isinstance(max_gap, (int, float, np.integer, np.floating)):
+        raise TypeError(f"max_gap must be a number, got {type(max_gap).__name__}")
+    g = float(max_gap)
+    if not g > 0:
+        raise ValueError(f"max_gap must be > 0, got {max_gap!r}")
+    return g
+
+
+def check_on_duplicate(on_duplicate: Any) -> bool:
+    if on_duplicate not in ON_DUPLICATE:
+        raise ValueError(f"on_duplicate must be 'raise' or 'drop', got {on_duplicate!r}")
+    return on_duplicate == "drop"
+
+
+def _z_dtype(z: Any) -> np.ndarray:
+    from .filters import _ACCEPTED
+
+    if not isinstance(z, np.ndarray):
+        z = np.asarray(z)
+        if z.dtype.kind in "iub":
+            raise TypeError(f"z must be a float32 or float64 array, got {z.dtype}; convert it with np.asarray(z, float)")
+    if z.dtype not in _ACCEPTED:
+        raise TypeError(f"z must be a float32 or float64 array (native byte order), got dtype {z.dtype}")
+    return z
+
+
+def _aligned(a: np.ndarray) -> np.ndarray:
+    if not a.flags.aligned or any(s % a.itemsize for s in a.strides):
+        return np.ascontiguousarray(a)  # unaligned memory: the one case that copies
+    return a
+
+
+def run_tracks(
+    f: "FixedGainFilter",
+    z: Any,
+    *,
+    t: Any,
+    offsets: Any,
+    max_gap: Any,
+    on_duplicate: Any,
+    init: Any,
+    state: Optional["FilterState"],
+    out: Optional[np.ndarray],
+    return_residuals: bool,
+    threads: Optional[int],
+) -> "FilterResult":
+    """One spatial axis (or none) through the track kernel."""
+    from .filters import FilterResult, FilterState
+
+    if threads is not None and (not isinstance(threads, (int, np.integer)) or isinstance(threads, bool) or threads < 1):
+        raise ValueError(f"threads must be a positive integer or None, got {threads!r}")
+    drop = check_on_duplicate(on_duplicate)
+    gap = check_max_gap(max_gap, t is not None)
+    z = _z_dtype(z)
+    m = f.m
+    if offsets is not None:
+        want = 1 if m == 1 else 2
+        if z.ndim != want or (m > 1 and z.shape[-1] != m):
+            raise ValueError(f"with offsets, z must have shape (N,){'' if m == 1 else f' or (N, {m})'} for this filter, got {z.shape}")
+        n_total = z.shape[0]
+        off = check_offsets(offsets, n_total)
+        n_tracks = off.size - 1
+        z3 = z[None, :, None] if m == 1 else z[None]
+        sample_shape: Tuple[int, ...] = (n_total,)
+        single = False
+    else:
+        from .filters import prepare_z
+
+        z3, (n_tracks, n_samples), single = prepare_z(z, m)
+        n_total = n_tracks * n_samples
+        off = np.arange(n_tracks + 1, dtype=np.int64) * n_samples
+        sample_shape = (n_samples,) if single else (n_tracks, n_samples)
+    z3 = _aligned(z3)
+    f._check_params(n_tracks)
+    t_arr = None
+    t2 = None
+    if t is not None:
+        t_arr = check_t(t, sample_shape)
+        t2 = t_arr.reshape(z3.shape[:2]) if t_arr.ndim == 1 else t_arr
+        t2 = _aligned(t2)
+        law, params = f._time_law()
+    else:
+        law = "constant"
+        params = np.concatenate([f._phi.reshape(f.n_params, -1), f._k.reshape(f.n_params, -1)], axis=1)
+    tn = f._t
+    if not np.all(tn == tn[0]):
+        raise ValueError("t and offsets need one sampling period T for all tracks (the filter has per-track T)")
+    packed, init_mode = f._initial_state(init, state, n_tracks)
+    if state is None:
+        packed[:, T_LAST] = np.nan
+        packed[:, T_HELD] = np.nan
+    zarr = z
+    shape = sample_shape
+    o = f._out(out, zarr, z3, shape)
+    out2 = o.reshape(f.n, n_total)
+    res2 = np.empty((n_total, m), dtype=z3.dtype) if return_residuals else None
+    counts = np.zeros((n_tracks, 2), dtype=np.int64)
+    _abkit.filter_tracks(
+        z3, t2, off, f.n, m, law, np.ascontiguousarray(params, dtype=np.float64).reshape(-1),
+        np.ascontiguousarray(f._h[0]).reshape(-1), np.ascontiguousarray(f._hpinv[0]).reshape(-1),
+        float(tn[0]), init_mode, gap, drop, packed, out2, counts, res2,
+        None if threads is None else int(threads),
+    )
+    residuals = None
+    if res2 is not None:
+        residuals = res2.reshape(shape + ((m,) if m > 1 else ()))
+    return FilterResult(
+        o, residuals, FilterState(packed, f.n, single),
+        offsets=None if offsets is None else off,
+        n_dropped=counts[:, 0].copy(), n_restarts=counts[:, 1].copy(),
+        t=t_arr if t is not None else None,
+    )
+
+
+def run_axes(f: "FixedGainFilter", z: Any, axes: Any, *, t: Any, offsets: Any, state: Optional["FilterState"], out: Optional[np.ndarray], **kw: Any) -> "FilterResult":
+    """Each spatial axis through :func:`run_tracks` (strided views of ``z``,
+    no copy), results stacked on a trailing axis."""
+    from .filters import FilterResult, FilterState
+
+    if isinstance(axes, bool) or not isinstance(axes, (int, np.integer)) or axes not in (2, 3):
+        raise ValueError(f"axes must be 2, 3 or None, got {axes!r}")
+    d = int(axes)
+    z = _z_dtype(z)
+    ax = -1 if f.m == 1 else -2
+    if z.ndim < (2 if f.m == 1 else 3) or z.shape[ax] != d:
+        tail = f"({d},)" if f.m == 1 else f"({d}, {f.m})"
+        raise ValueError(f"with axes={d}, z must end with the spatial axis {tail}, got shape {z.shape}")
+    views = [z[..., a] if f.m == 1 else z[..., a, :] for a in range(d)]
+    sub_states = None
+    if state is not None:
+        from .filters import FilterState as _FS
+
+        if not isinstance(state, _FS):
+            raise TypeError(f"state must be a FilterState (result.state), got {type(state).__name__}")
+        if state.axes != d:
+            raise ValueError(f"state is for axes={state.axes}, the call has axes={d}")
+        sub_states = [FilterState(np.ascontiguousarray(state._packed[a::d]), state.n, state.single) for a in range(d)]
+    results = [
+        run_tracks(f, views[a], t=t, offsets=offsets, state=None if sub_states is None else sub_states[a], out=None, **kw)
+        for a in range(d)
+    ]
+    r0 = results[0]
+    shape = r0.states.shape + (d,)
+    if out is not None:
+        o = f._out(out, z, z, shape[1:])
+    else:
+        o = np.empty(shape, dtype=r0.states.dtype)
+    for a, r in enumerate(results):
+        o[..., a] = r.states
+    residuals = None
+    if r0.residuals is not None:
+        residuals = np.stack([r.residuals for r in results if r.residuals is not None], axis=-1 if f.m == 1 else -2)
+    nt = r0.state._packed.shape[0]
+    packed = np.empty((nt * d, _W))
+    for a, r in enumerate(results):
+        packed[a::d] = r.state._packed
+    st = FilterState(packed, f.n, r0.state.single, axes=d)
+    return FilterResult(
+        o, residuals, st, offsets=r0.offsets,
+        n_dropped=r0.n_dropped,
+        n_restarts=r0.n_restarts,
+        t=r0.t,
+    )

@@ -1,0 +1,313 @@
+//! Gain laws for irregular sampling: the transition `Phi(dt)` and the
+//! filter-form gain `K(dt)` of a kinematic filter as functions of the step
+//! `dt_k = t_k - t_{k-1}`.
+//!
+//! Two schedules:
+//!
+//! - **design** (filters built from noise statistics): at every step the
+//!   steady-state Kalman design for that `dt`:
+//!   - alpha-beta ([`AbDesign`]): Kalata's tracking index
+//!     `lambda = (sigma_w / sigma_v) dt^2` (`= 2 sqrt(r)`,
+//!     `r = ((sigma_w dt^2 / 2) / sigma_v)^2`), then `(alpha, beta)` by the
+//!     stable closed form of [`crate::alphabeta::kalman_uv_from_lambda`],
+//!     `K = [alpha, beta / dt]`;
+//!   - alpha-beta-gamma ([`AbgDesign`]): [`crate::abg::from_noise`] at
+//!     `h = dt` (closed form when only the acceleration is driven, checked
+//!     Riccati solver otherwise), `K = [alpha, beta/dt, gamma/dt^2]` in the
+//!     paper's (Chen & Chui) convention;
+//!   - Singer ([`SingerDesign`]): [`crate::singer::steady_state`] of the
+//!     normalised model at `theta = dt / tau`, `q_N = q dt^5 / sigma_pos^2`
+//!     (closed form with numeric fallback), back to physical units
+//!     `K = [K1, K2/dt, K3/dt^2]`.
+//!
+//!   The two laws that need a solver keep a small cache keyed by `dt` (the
+//!   last [`CACHE_SLOTS`] distinct steps), so regularly sampled or
+//!   quantised timestamps cost one design per distinct step.
+//! - **fixed** (filters given gains): the gains `alpha, beta, gamma` stay
+//!   fixed, only the prediction and the rate gains use `dt`:
+//!   `K = [alpha, beta/dt, c gamma/dt^2]` ([`AbFixed`], [`AbgFixed`]).
+//!
+//! All laws predict with the kinematic transition of their model:
+//! `[[1, dt], [0, 1]]`, `[[1, dt, dt^2/2], [0, 1, dt], [0, 0, 1]]` or the
+//! Singer `Phi(dt)` of [`crate::singer::normalized_model`].
+#![allow(clippy::needless_range_loop)]
+
+use crate::alphabeta::{kalman_alpha, kalman_uv_from_lambda};
+use crate::{Error, Result};
+
+/// The model of one step: `x_p = phi x`, `x = x_p + k (z - H x_p)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step<const N: usize, const M: usize> {
+    /// Transition over the step.
+    pub phi: [[f64; N]; N],
+    /// Filter-form gain.
+    pub k: [[f64; M]; N],
+}
+
+/// A gain law: the step model as a function of `dt > 0`.
+///
+/// `step` may fail (a solver finding no steady state at that `dt`); the
+/// kernels report the failure with the track and sample.
+pub trait GainLaw<const N: usize, const M: usize>: Clone + Send + Sync {
+    /// The step model for the interval `dt` (finite and > 0).
+    fn step(&mut self, dt: f64) -> Result<Step<N, M>>;
+}
+
+/// A constant step model (the regular-sampling filter; `dt` ignored).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Constant<const N: usize, const M: usize>(pub Step<N, M>);
+
+impl<const N: usize, const M: usize> GainLaw<N, M> for Constant<N, M> {
+    #[inline(always)]
+    fn step(&mut self, _dt: f64) -> Result<Step<N, M>> {
+        Ok(self.0)
+    }
+}
+
+/// `[[1, dt], [0, 1]]`.
+#[inline(always)]
+pub fn phi_cv(dt: f64) -> [[f64; 2]; 2] {
+    [[1.0, dt], [0.0, 1.0]]
+}
+
+/// `[[1, dt, dt^2/2], [0, 1, dt], [0, 0, 1]]`.
+#[inline(always)]
+pub fn phi_ca(dt: f64) -> [[f64; 3]; 3] {
+    [[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]]
+}
+
+/// Alpha-beta gains kept fixed: `K = [alpha, beta/dt]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AbFixed {
+    /// Position gain.
+    pub alpha: f64,
+    /// Velocity gain (dimensionless; the physical gain is `beta/dt`).
+    pub beta: f64,
+}
+
+impl GainLaw<2, 1> for AbFixed {
+    #[inline(always)]
+    fn step(&mut self, dt: f64) -> Result<Step<2, 1>> {
+        Ok(Step {
+            phi: phi_cv(dt),
+            k: [[self.alpha], [self.beta / dt]],
+        })
+    }
+}
+
+/// The steady-state Kalman alpha-beta design of the white-acceleration
+/// model at each `dt` (`ratio = sigma_w / sigma_v`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AbDesign {
+    /// `sigma_w / sigma_v` (finite, > 0).
+    pub ratio: f64,
+}
+
+impl AbDesign {
+    /// `(alpha, beta)` of the Kalman design at `dt`: tracking index
+    /// `lambda = ratio dt^2`, then the closed form of paper 000 (same
+    /// arithmetic as [`crate::alphabeta::AlphaBeta::from_noise`]).
+    /// `lambda` rounding to 0 (tiny `dt`) gives `(0, 0)`, pure prediction;
+    /// `lambda = inf` gives `(1, 2)`.
+    #[inline(always)]
+    pub fn gains(&self, dt: f64) -> (f64, f64) {
+        let lambda = self.ratio * dt * dt;
+        let (u, v) = kalman_uv_from_lambda(lambda);
+        (kalman_alpha(u, v), 2.0 * v * v)
+    }
+}
+
+impl GainLaw<2, 1> for AbDesign {
+    #[inline(always)]
+    fn step(&mut self, dt: f64) -> Result<Step<2, 1>> {
+        let (a, b) = self.gains(dt);
+        Ok(Step {
+            phi: phi_cv(dt),
+            k: [[a], [b / dt]],
+        })
+    }
+}
+
+/// Alpha-beta-gamma gains kept fixed: `K = [alpha, beta/dt, c gamma/dt^2]`
+/// (`c` of the convention: 1/2 standard, 1 Chen & Chui, 2 g-h-k).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AbgFixed {
+    /// Position gain.
+    pub alpha: f64,
+    /// Velocity gain.
+    pub beta: f64,
+    /// `c * gamma`, the acceleration gain times `dt^2`.
+    pub cgamma: f64,
+}
+
+impl GainLaw<3, 1> for AbgFixed {
+    #[inline(always)]
+    fn step(&mut self, dt: f64) -> Result<Step<3, 1>> {
+        Ok(Step {
+            phi: phi_ca(dt),
+            k: [[self.alpha], [self.beta / dt], [self.cgamma / (dt * dt)]],
+        })
+    }
+}
+
+/// Number of distinct steps remembered by [`DtCache`].
+pub const CACHE_SLOTS: usize = 8;
+
+/// The last [`CACHE_SLOTS`] distinct `dt` and their step models (round robin).
+#[derive(Debug, Clone, Copy)]
+pub struct DtCache<const N: usize, const M: usize> {
+    keys: [f64; CACHE_SLOTS],
+    vals: [Step<N, M>; CACHE_SLOTS],
+    next: usize,
+}
+
+impl<const N: usize, const M: usize> Default for DtCache<N, M> {
+    fn default() -> Self {
+        DtCache {
+            keys: [f64::NAN; CACHE_SLOTS],
+            vals: [Step {
+                phi: [[0.0; N]; N],
+                k: [[0.0; M]; N],
+            }; CACHE_SLOTS],
+            next: 0,
+        }
+    }
+}
+
+impl<const N: usize, const M: usize> DtCache<N, M> {
+    /// The cached model for `dt`, or `make(dt)` (stored on success).
+    #[inline]
+    pub fn get(
+        &mut self,
+        dt: f64,
+        make: impl FnOnce(f64) -> Result<Step<N, M>>,
+    ) -> Result<Step<N, M>> {
+        for i in 0..CACHE_SLOTS {
+            if self.keys[i] == dt {
+                return Ok(self.vals[i]);
+            }
+        }
+        let s = make(dt)?;
+        self.keys[self.next] = dt;
+        self.vals[self.next] = s;
+        self.next = (self.next + 1) % CACHE_SLOTS;
+        Ok(s)
+    }
+}
+
+/// The limiting Kalman alpha-beta-gamma design of Chen & Chui at each `dt`:
+/// process noise variances `Q = diag(sigma_p, sigma_v, sigma_a)`, measurement
+/// variance `sigma_m` (see [`crate::abg::from_noise`]).
+#[derive(Debug, Clone, Copy)]
+pub struct AbgDesign {
+    /// `[sigma_p, sigma_v, sigma_a, sigma_m]` (variances).
+    pub noise: [f64; 4],
+    cache: DtCache<3, 1>,
+}
+
+impl AbgDesign {
+    /// Validated law (the noise as for [`crate::abg::from_noise`]).
+    pub fn new(sigma_p: f64, sigma_v: f64, sigma_a: f64, sigma_m: f64) -> Result<Self> {
+        // Validate once at a unit step (domain errors name the parameter).
+        crate::abg::from_noise(sigma_p, sigma_v, sigma_a, sigma_m, 1.0)?;
+        Ok(AbgDesign {
+            noise: [sigma_p, sigma_v, sigma_a, sigma_m],
+            cache: DtCache::default(),
+        })
+    }
+
+    /// The Chen & Chui gains `[alpha, beta, gamma]` at `dt`.
+    pub fn gains(&self, dt: f64) -> Result<[f64; 3]> {
+        abg_gains(self.noise, dt)
+    }
+}
+
+fn abg_gains(noise: [f64; 4], dt: f64) -> Result<[f64; 3]> {
+    let [sp, sv, sa, sm] = noise;
+    crate::abg::from_noise(sp, sv, sa, sm, dt)
+}
+
+impl GainLaw<3, 1> for AbgDesign {
+    fn step(&mut self, dt: f64) -> Result<Step<3, 1>> {
+        let noise = self.noise;
+        self.cache.get(dt, |dt| {
+            let [a, b, g] = abg_gains(noise, dt)?;
+            Ok(Step {
+                phi: phi_ca(dt),
+                k: [[a], [b / dt], [g / (dt * dt)]],
+            })
+        })
+    }
+}
+
+/// The steady-state Kalman filter of the Singer model (position-only
+/// measurements) at each `dt`.
+#[derive(Debug, Clone, Copy)]
+pub struct SingerDesign {
+    /// Manoeuvre correlation time (> 0, `inf` allowed).
+    pub tau: f64,
+    /// White-noise spectral density of the acceleration (> 0).
+    pub q: f64,
+    /// Rms position measurement error (> 0).
+    pub sigma_pos: f64,
+    cache: DtCache<3, 1>,
+}
+
+impl SingerDesign {
+    /// Validated law.
+    pub fn new(tau: f64, q: f64, sigma_pos: f64) -> Result<Self> {
+        if tau.is_nan() || tau <= 0.0 {
+            return Err(Error::domain("tau", "> 0 (inf allowed)", tau));
+        }
+        if !(q.is_finite() && q > 0.0) {
+            return Err(Error::domain("q", "finite and > 0", q));
+        }
+        if !(sigma_pos.is_finite() && sigma_pos > 0.0) {
+            return Err(Error::domain("sigma_pos", "finite and > 0", sigma_pos));
+        }
+        Ok(SingerDesign {
+            tau,
+            q,
+            sigma_pos,
+            cache: DtCache::default(),
+        })
+    }
+
+    /// The physical step model at `dt` (uncached).
+    pub fn design(&self, dt: f64) -> Result<Step<3, 1>> {
+        singer_step(self.tau, self.q, self.sigma_pos, dt)
+    }
+}
+
+fn singer_step(tau: f64, q: f64, sigma_pos: f64, dt: f64) -> Result<Step<3, 1>> {
+    {
+        let theta = dt / tau;
+        let s = dt * dt / sigma_pos;
+        let qn = q * dt * s * s;
+        if !(qn.is_finite() && qn > 0.0) {
+            return Err(Error::domain(
+                "q dt^5 / sigma_pos^2",
+                "representable as a finite, positive float64 (dt too small or too large)",
+                qn,
+            ));
+        }
+        let ss =
+            crate::singer::steady_state(theta, qn, f64::INFINITY, crate::singer::Method::Auto)?;
+        let d = [1.0, dt, dt * dt];
+        Ok(Step {
+            phi: std::array::from_fn(|i| std::array::from_fn(|j| ss.phi[(i, j)] * d[j] / d[i])),
+            k: std::array::from_fn(|i| [ss.k[i][0] / d[i]]),
+        })
+    }
+}
+
+impl GainLaw<3, 1> for SingerDesign {
+    fn step(&mut self, dt: f64) -> Result<Step<3, 1>> {
+        let (tau, q, sp) = (self.tau, self.q, self.sigma_pos);
+        self.cache.get(dt, |dt| singer_step(tau, q, sp, dt))
+    }
+}
+
+#[cfg(test)]
+#[path = "tests/irregular.rs"]
+mod tests;

@@ -1,0 +1,664 @@
+//! Ragged batches of tracks with optional per-sample timestamps.
+//!
+//! # Layout
+//! The samples of all tracks are one flat sequence of `N` samples; track `i`
+//! is samples `offsets[i]..offsets[i+1]` (the Arrow list layout). Outputs
+//! use the same flat layout: estimates `(n, N)` component-major, residuals
+//! `(N, m)`. A rectangular batch `(n_tracks, n_samples)` is the special case
+//! `offsets[i] = i n_samples` ([`Samples`] addresses both without a copy).
+//!
+//! # Semantics (per track)
+//! The state always sits at the time of the last kept sample. With
+//! timestamps, sample `k` at `t_k`:
+//!
+//! 1. `t_k` must be finite, and after the last kept timestamp: otherwise an
+//!    [`Error::Data`] (track, sample), or with `drop_duplicates` the sample
+//!    is dropped (estimates and residual NaN, state untouched, counted).
+//! 2. `dt = t_k - t_last`; if `dt > max_gap` a started track restarts (phase
+//!    0, counted) and sample `k` starts it again by the `init` rule.
+//! 3. Start-up as in [`crate::filter`]: the two-point velocity is
+//!    `(z2 - z1) / (t2 - t1)`.
+//! 4. Running: `x_p = Phi(dt) x`, `e = z - H x_p`, `x = x_p + K(dt) e`
+//!    (coast `x = x_p` on a NaN measurement) with the step model of the
+//!    [`GainLaw`].
+//!
+//! Without timestamps every step is the nominal period (`dt = T`) and the
+//! two-point velocity uses the sample count, as in [`crate::filter`]. A
+//! running state without a known last time (an explicit initial state, or
+//! a state from a call without timestamps) is taken to be one nominal
+//! period before its next sample.
+//!
+//! Tracks are processed in blocks of consecutive tracks (about
+//! [`BLOCK_SAMPLES`] samples each) on rayon's pool; each block gets
+//! disjoint sub-slices of the outputs, nothing is padded or copied. The
+//! result of a track never depends on the blocking, so results are
+//! bit-identical for any thread count and equal to running each track alone.
+#![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
+
+use crate::filter::{Init, IoFloat, TrackOut, TrackState};
+use crate::irregular::{GainLaw, Step};
+use crate::{Error, Result};
+use rayon::prelude::*;
+
+/// Target samples per block of tracks.
+pub const BLOCK_SAMPLES: usize = 32_768;
+/// Largest number of tracks per block.
+pub const BLOCK_TRACKS: usize = 4_096;
+
+/// Samples (or timestamps, `m = 1`) in rows: flat sample `g` is in row
+/// `g / row_len` at position `g % row_len`; element `(g, j)` is
+/// `data[base + row * s_row + pos * s_sample + j * s_comp]` (strides in
+/// elements, any sign). A flat array is one row of all samples; a
+/// rectangular `(n_tracks, n_samples)` array has `row_len = n_samples`.
+#[derive(Debug, Clone, Copy)]
+pub struct Samples<'a, T> {
+    /// Backing memory.
+    pub data: &'a [T],
+    /// Offset of element `(0, 0)`.
+    pub base: usize,
+    /// Stride between rows.
+    pub s_row: isize,
+    /// Stride between samples of a row.
+    pub s_sample: isize,
+    /// Stride between components.
+    pub s_comp: isize,
+    /// Samples per row.
+    pub row_len: usize,
+    /// Number of rows.
+    pub n_rows: usize,
+    /// Components per sample.
+    pub m: usize,
+}
+
+impl<'a, T: Copy> Samples<'a, T> {
+    /// A contiguous flat `(n, m)` array.
+    pub fn flat(data: &'a [T], m: usize) -> Result<Self> {
+        if m == 0 || data.len() % m != 0 {
+            return Err(Error::Shape(format!(
+                "buffer of {} elements is not a multiple of m = {m}",
+                data.len()
+            )));
+        }
+        Ok(Samples {
+            data,
+            base: 0,
+            s_row: 0,
+            s_sample: m as isize,
+            s_comp: 1,
+            row_len: data.len() / m,
+            n_rows: 1,
+            m,
+        })
+    }
+
+    /// Total number of samples.
+    pub fn len(&self) -> usize {
+        self.row_len * self.n_rows
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Address of flat sample `g`, component 0.
+    #[inline]
+    fn addr(&self, g: usize) -> isize {
+        let (r, p) = if self.n_rows <= 1 {
+            (0, g)
+        } else {
+            (g / self.row_len, g % self.row_len)
+        };
+        self.base as isize + r as isize * self.s_row + p as isize * self.s_sample
+    }
+
+    /// Check that every element lies inside `data`.
+    fn validate(&self, what: &str) -> Result<()> {
+        if self.is_empty() {
+            return Ok(());
+        }
+        let ext = |n: usize, s: isize| {
+            let span = (n as isize - 1) * s;
+            (span.min(0), span.max(0))
+        };
+        let parts = [
+            ext(self.n_rows, self.s_row),
+            ext(self.row_len, self.s_sample),
+            ext(self.m, self.s_comp),
+        ];
+        let lo = self.base as isize + parts.iter().map(|p| p.0).sum::<isize>();
+        let hi = self.base as isize + parts.iter().map(|p| p.1).sum::<isize>();
+        if lo < 0 || hi >= self.data.len() as isize {
+            return Err(Error::Shape(format!(
+                "{what} strides reach outside the buffer"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Options of the track kernel.
+#[derive(Debug, Clone, Copy)]
+pub struct Options {
+    /// Start-up rule.
+    pub init: Init,
+    /// Nominal period: the step without timestamps, and the two-point
+    /// divisor `gap * T` when no held timestamp is known.
+    pub t_nominal: f64,
+    /// Restart a track after a step longer than this (timestamps only).
+    pub max_gap: Option<f64>,
+    /// Drop samples whose timestamp is not after the last kept one
+    /// (otherwise an error).
+    pub drop_duplicates: bool,
+}
+
+/// The filter of the track kernel: a gain law (one for all tracks or one
+/// per track) and the measurement model.
+#[derive(Debug, Clone)]
+pub struct TrackFilter<'a, L, const N: usize, const M: usize> {
+    /// Gain laws, `1` or `n_tracks`.
+    pub laws: &'a [L],
+    /// Measurement matrix.
+    pub h: [[f64; N]; M],
+    /// Pseudo-inverse of `H`, for `Init::First`.
+    pub h_pinv: [[f64; M]; N],
+}
+
+/// Per-track counts: `[n_dropped, n_restarts]`.
+pub type Counts = [i64; 2];
+
+/// What to do with each track after filtering it (e.g. smoothing): called
+/// with the track index, its estimates and its timestamps (if any).
+pub trait PostTrack<T, const N: usize>: Sync {
+    /// Process one filtered track in place.
+    fn post(
+        &self,
+        track: usize,
+        states: &mut [&mut [T]; N],
+        t: Option<&dyn Fn(usize) -> f64>,
+        max_gap: Option<f64>,
+    ) -> Result<()>;
+}
+
+/// No post-processing.
+#[derive(Debug, Clone, Copy)]
+pub struct NoPost;
+
+impl<T, const N: usize> PostTrack<T, N> for NoPost {
+    fn post(
+        &self,
+        _: usize,
+        _: &mut [&mut [T]; N],
+        _: Option<&dyn Fn(usize) -> f64>,
+        _: Option<f64>,
+    ) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// Check offsets: `n_tracks + 1` entries, starting at 0, non-decreasing,
+/// ending at `n_total`; and (for rows of a rectangular array) no track
+/// crossing a row. Returns them as `usize`.
+pub fn check_offsets(
+    offsets: &[i64],
+    n_total: usize,
+    row_len: usize,
+    n_rows: usize,
+) -> Result<Vec<usize>> {
+    let Some(&first) = offsets.first() else {
+        return Err(Error::Shape("offsets must have at least one entry".into()));
+    };
+    if first != 0 {
+        return Err(Error::Shape(format!("offsets[0] must be 0, got {first}")));
+    }
+    let mut out = Vec::with_capacity(offsets.len());
+    let mut prev = 0i64;
+    for (i, &o) in offsets.iter().enumerate() {
+        if o < prev {
+            return Err(Error::Shape(format!(
+                "offsets must be non-decreasing: offsets[{i}] = {o} < offsets[{}] = {prev}",
+                i - 1
+            )));
+        }
+        prev = o;
+        out.push(o as usize);
+    }
+    if prev as usize != n_total || prev < 0 {
+        return Err(Error::Shape(format!(
+            "offsets[-1] must be the number of samples {n_total}, got {prev}"
+        )));
+    }
+    if n_rows > 1 {
+        for (i, w) in out.windows(2).enumerate() {
+            if w[1] > w[0] && (w[0] / row_len != (w[1] - 1) / row_len) {
+                return Err(Error::Shape(format!(
+                    "track {i} crosses a row of the measurement array"
+                )));
+            }
+        }
+    }
+    Ok(out)
+}
+
+struct Block<'a, T, const N: usize> {
+    i0: usize,
+    s0: usize,
+    comps: [&'a mut [T]; N],
+    resid: Option<&'a mut [T]>,
+    states: &'a mut [TrackState],
+    counts: &'a mut [Counts],
+}
+
+/// Split `[0, n_tracks)` into blocks of consecutive tracks.
+fn plan_blocks(offsets: &[usize]) -> Vec<(usize, usize)> {
+    let n_tracks = offsets.len() - 1;
+    let mut blocks = Vec::new();
+    let mut i0 = 0;
+    while i0 < n_tracks {
+        let mut i1 = i0 + 1;
+        while i1 < n_tracks && i1 - i0 < BLOCK_TRACKS && offsets[i1] - offsets[i0] < BLOCK_SAMPLES {
+            i1 += 1;
+        }
+        blocks.push((i0, i1));
+        i0 = i1;
+    }
+    blocks
+}
+
+/// Filter ragged tracks (see the module docs).
+///
+/// `out` is `(N, n_total)` component-major, `resid` `(n_total, M)`,
+/// `states` and `counts` one per track.
+pub fn filter_tracks<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    offsets: &[i64],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    states: &mut [TrackState],
+    out: &mut [T],
+    resid: Option<&mut [T]>,
+    counts: &mut [Counts],
+    parallel: bool,
+    post: &P,
+) -> Result<()> {
+    let n_total = z.len();
+    if z.m != M {
+        return Err(Error::Shape(format!(
+            "measurements have {} components, the filter {M}",
+            z.m
+        )));
+    }
+    z.validate("measurement")?;
+    let off = check_offsets(offsets, n_total, z.row_len, z.n_rows)?;
+    let n_tracks = off.len() - 1;
+    if let Some(t) = t {
+        if t.len() != n_total || t.row_len != z.row_len {
+            return Err(Error::Shape(format!(
+                "t has {} samples in rows of {}, z {n_total} in rows of {}",
+                t.len(),
+                t.row_len,
+                z.row_len
+            )));
+        }
+        t.validate("timestamp")?;
+    }
+    if filt.laws.len() != 1 && filt.laws.len() != n_tracks {
+        return Err(Error::Shape(format!(
+            "{} parameter sets for {n_tracks} tracks (need 1 or one per track)",
+            filt.laws.len()
+        )));
+    }
+    if states.len() != n_tracks || counts.len() != n_tracks {
+        return Err(Error::Shape(
+            "state or count buffers do not match the tracks".into(),
+        ));
+    }
+    if out.len() != N * n_total {
+        return Err(Error::Shape("output buffer has the wrong size".into()));
+    }
+    if let Some(r) = &resid {
+        if r.len() != M * n_total {
+            return Err(Error::Shape("residual buffer has the wrong size".into()));
+        }
+    }
+    if !(opts.t_nominal.is_finite() && opts.t_nominal > 0.0) {
+        return Err(Error::domain("T", "finite and > 0", opts.t_nominal));
+    }
+    if let Some(g) = opts.max_gap {
+        if g.is_nan() || g <= 0.0 {
+            return Err(Error::domain("max_gap", "> 0", g));
+        }
+    }
+    if n_tracks == 0 {
+        return Ok(());
+    }
+    // Split the outputs into per-block slices.
+    let plan = plan_blocks(&off);
+    let mut rows: Vec<&mut [T]> = if n_total == 0 {
+        (0..N).map(|_| -> &mut [T] { &mut [] }).collect()
+    } else {
+        out.chunks_exact_mut(n_total).collect()
+    };
+    let mut resid_rest = resid;
+    let mut st_rest = states;
+    let mut ct_rest = counts;
+    let mut blocks: Vec<Block<'_, T, N>> = Vec::with_capacity(plan.len());
+    for &(i0, i1) in &plan {
+        let len = off[i1] - off[i0];
+        let mut comps: [&mut [T]; N] = std::array::from_fn(|_| -> &mut [T] { &mut [] });
+        for (c, row) in rows.iter_mut().enumerate() {
+            let (a, b) = std::mem::take(row).split_at_mut(len);
+            comps[c] = a;
+            *row = b;
+        }
+        let r = match resid_rest.take() {
+            Some(r) => {
+                let (a, b) = r.split_at_mut(len * M);
+                resid_rest = Some(b);
+                Some(a)
+            }
+            None => None,
+        };
+        let (s, s_rest) = std::mem::take(&mut st_rest).split_at_mut(i1 - i0);
+        st_rest = s_rest;
+        let (c, c_rest) = std::mem::take(&mut ct_rest).split_at_mut(i1 - i0);
+        ct_rest = c_rest;
+        blocks.push(Block {
+            i0,
+            s0: off[i0],
+            comps,
+            resid: r,
+            states: s,
+            counts: c,
+        });
+    }
+    let run = |b: &mut Block<'_, T, N>| run_block(filt, opts, &off, z, t, b, post);
+    let results: Vec<Result<()>> = if parallel && blocks.len() > 1 {
+        blocks.par_iter_mut().map(run).collect()
+    } else {
+        blocks.iter_mut().map(run).collect()
+    };
+    results.into_iter().collect()
+}
+
+fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, const M: usize>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    off: &[usize],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    b: &mut Block<'_, T, N>,
+    post: &P,
+) -> Result<()> {
+    let mut shared: Option<L> = None;
+    for j in 0..b.states.len() {
+        let i = b.i0 + j;
+        let (a, e) = (off[i] - b.s0, off[i + 1] - b.s0);
+        let n = e - a;
+        let mut own;
+        let law: &mut L = if filt.laws.len() == 1 {
+            shared.get_or_insert_with(|| filt.laws[0].clone())
+        } else {
+            own = filt.laws[i].clone();
+            &mut own
+        };
+        let mut o = TrackOut {
+            states: b.comps.each_mut().map(|s| &mut s[a..e]),
+            resid: b.resid.as_deref_mut().map(|r| &mut r[a * M..e * M]),
+        };
+        let zb = z.addr(off[i]);
+        let zf = |k: usize| -> [f64; M] {
+            std::array::from_fn(|c| {
+                z.data[(zb + k as isize * z.s_sample + c as isize * z.s_comp) as usize].to_f64()
+            })
+        };
+        let st = &mut b.states[j];
+        let ct = &mut b.counts[j];
+        match t {
+            Some(ts) => {
+                let tb = ts.addr(off[i]);
+                let tf = |k: usize| -> f64 { ts.data[(tb + k as isize * ts.s_sample) as usize] };
+                track_tv(
+                    law,
+                    &filt.h,
+                    &filt.h_pinv,
+                    opts,
+                    st,
+                    n,
+                    zf,
+                    Some(&tf),
+                    &mut o,
+                    ct,
+                    i,
+                )?;
+                post.post(i, &mut o.states, Some(&tf), opts.max_gap)?;
+            }
+            None => {
+                track_tv(
+                    law,
+                    &filt.h,
+                    &filt.h_pinv,
+                    opts,
+                    st,
+                    n,
+                    zf,
+                    None::<&fn(usize) -> f64>,
+                    &mut o,
+                    ct,
+                    i,
+                )?;
+                post.post(i, &mut o.states, None, None)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One track of the time-varying kernel (see the module docs).
+#[inline(always)]
+fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
+    law: &mut L,
+    h: &[[f64; N]; M],
+    h_pinv: &[[f64; M]; N],
+    opts: &Options,
+    st: &mut TrackState,
+    n: usize,
+    z: impl Fn(usize) -> [f64; M],
+    t: Option<&impl Fn(usize) -> f64>,
+    out: &mut TrackOut<'_, T, N>,
+    counts: &mut Counts,
+    track: usize,
+) -> Result<()> {
+    let nan = T::from_f64(f64::NAN);
+    let max_gap = opts.max_gap.unwrap_or(f64::INFINITY);
+    let mut x: [f64; N] = std::array::from_fn(|i| st.x[i]);
+    let mut phase = st.phase;
+    // Step model cache for the last dt.
+    let mut last_dt = f64::NAN;
+    let mut step: Step<N, M> = Step {
+        phi: [[0.0; N]; N],
+        k: [[0.0; M]; N],
+    };
+    if t.is_none() {
+        step = law
+            .step(opts.t_nominal)
+            .map_err(|e| data_err(track, 0, e))?;
+        last_dt = opts.t_nominal;
+    }
+    let mut t_last = st.t_last;
+    let mut res = Ok(());
+    for k in 0..n {
+        let zk = z(k);
+        let valid = zk.iter().all(|v| !v.is_nan());
+        let mut dt = opts.t_nominal;
+        let mut tk = f64::NAN;
+        if let Some(tf) = t {
+            tk = tf(k);
+            if !tk.is_finite() {
+                res = Err(Error::Data {
+                    track,
+                    sample: k,
+                    msg: format!("t={tk} is not finite"),
+                });
+                break;
+            }
+            if !t_last.is_nan() {
+                if tk <= t_last {
+                    if opts.drop_duplicates {
+                        counts[0] += 1;
+                        for c in 0..N {
+                            out.states[c][k] = nan;
+                        }
+                        if let Some(r) = out.resid.as_deref_mut() {
+                            for j in 0..M {
+                                r[k * M + j] = nan;
+                            }
+                        }
+                        continue;
+                    }
+                    res = Err(Error::Data {
+                        track,
+                        sample: k,
+                        msg: format!("t={tk} not after t={t_last} (use on_duplicate='drop' to drop such samples)"),
+                    });
+                    break;
+                }
+                dt = tk - t_last;
+                if dt > max_gap && phase > 0.0 {
+                    phase = 0.0;
+                    counts[1] += 1;
+                }
+            }
+            t_last = tk;
+        }
+        if phase >= 2.0 {
+            if dt != last_dt {
+                match law.step(dt) {
+                    Ok(s) => step = s,
+                    Err(e) => {
+                        res = Err(data_err(track, k, e));
+                        break;
+                    }
+                }
+                last_dt = dt;
+            }
+            let mut xp = [0.0; N];
+            for i in 0..N {
+                let mut s = 0.0;
+                for j in 0..N {
+                    s += step.phi[i][j] * x[j];
+                }
+                xp[i] = s;
+            }
+            let mut e = [0.0; M];
+            for j in 0..M {
+                let mut hx = 0.0;
+                for i in 0..N {
+                    hx += h[j][i] * xp[i];
+                }
+                e[j] = zk[j] - hx;
+            }
+            if valid {
+                for i in 0..N {
+                    let mut s = xp[i];
+                    for j in 0..M {
+                        s += step.k[i][j] * e[j];
+                    }
+                    x[i] = s;
+                }
+            } else {
+                x = xp;
+            }
+            for c in 0..N {
+                out.states[c][k] = T::from_f64(x[c]);
+            }
+            if let Some(r) = out.resid.as_deref_mut() {
+                for j in 0..M {
+                    r[k * M + j] = if valid { T::from_f64(e[j]) } else { nan };
+                }
+            }
+            continue;
+        }
+        if let Some(r) = out.resid.as_deref_mut() {
+            for j in 0..M {
+                r[k * M + j] = nan;
+            }
+        }
+        if phase == 0.0 {
+            if !valid {
+                for c in 0..N {
+                    out.states[c][k] = nan;
+                }
+                continue;
+            }
+            for (i, xi) in x.iter_mut().enumerate() {
+                *xi = (0..M).map(|j| h_pinv[i][j] * zk[j]).sum();
+            }
+            if opts.init == Init::First {
+                phase = 2.0;
+                for c in 0..N {
+                    out.states[c][k] = T::from_f64(x[c]);
+                }
+            } else {
+                phase = 1.0;
+                st.since = 0.0;
+                st.t_held = tk;
+                out.states[0][k] = T::from_f64(x[0]);
+                for c in 1..N {
+                    out.states[c][k] = nan;
+                }
+            }
+            continue;
+        }
+        // phase 1: holding the first valid position (two-point start).
+        if !valid {
+            st.since += 1.0;
+            out.states[0][k] = T::from_f64(x[0]);
+            for c in 1..N {
+                out.states[c][k] = nan;
+            }
+            continue;
+        }
+        let gap = if t.is_some() && !st.t_held.is_nan() {
+            tk - st.t_held
+        } else {
+            (st.since + 1.0) * opts.t_nominal
+        };
+        let p1 = x[0];
+        let p2 = zk[0];
+        x = [0.0; N];
+        x[0] = p2;
+        if N > 1 {
+            x[1] = (p2 - p1) / gap;
+        }
+        phase = 2.0;
+        st.since = 0.0;
+        st.t_held = f64::NAN;
+        for c in 0..N {
+            out.states[c][k] = T::from_f64(x[c]);
+        }
+    }
+    st.x[..N].copy_from_slice(&x);
+    st.phase = phase;
+    st.t_last = t_last;
+    res
+}
+
+fn data_err(track: usize, sample: usize, e: Error) -> Error {
+    Error::Data {
+        track,
+        sample,
+        msg: format!("no gains for this step: {e}"),
+    }
+}
+
+#[cfg(test)]
+#[path = "tests/ragged.rs"]
+mod tests;

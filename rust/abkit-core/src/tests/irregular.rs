@@ -1,0 +1,82 @@
+use super::*;
+use crate::alphabeta::AlphaBeta;
+
+#[test]
+fn ab_design_matches_the_alphabeta_design_at_each_dt() {
+    let (sw, sv) = (3.2, 32.0);
+    let mut law = AbDesign { ratio: sw / sv };
+    for &dt in &[1e-6, 0.01, 0.1, 0.7, 1.0, 3.3, 100.0, 1e4] {
+        let d = AlphaBeta::from_noise(sw, sv, dt).unwrap();
+        let s = law.step(dt).unwrap();
+        assert_eq!(s.k[0][0], d.alpha, "dt={dt}");
+        assert_eq!(s.k[1][0], d.beta / dt, "dt={dt}");
+        assert_eq!(s.phi, [[1.0, dt], [0.0, 1.0]]);
+    }
+}
+
+#[test]
+fn ab_design_limits_are_finite() {
+    let law = AbDesign { ratio: 1.0 };
+    assert_eq!(law.gains(1e-200), (0.0, 0.0));
+    let (a, b) = law.gains(1e200);
+    assert_eq!((a, b), (1.0, 2.0));
+}
+
+#[test]
+fn abg_design_matches_from_noise_and_caches() {
+    let mut law = AbgDesign::new(0.3, 0.2, 0.1, 1.0).unwrap();
+    for &dt in &[0.05, 0.7, 0.7, 2.0, 0.05] {
+        let [a, b, g] = crate::abg::from_noise(0.3, 0.2, 0.1, 1.0, dt).unwrap();
+        let s = law.step(dt).unwrap();
+        assert_eq!(s.k[0][0], a);
+        assert_eq!(s.k[1][0], b / dt);
+        assert_eq!(s.k[2][0], g / (dt * dt));
+        assert_eq!(s.phi[0][2], 0.5 * dt * dt);
+    }
+    assert!(AbgDesign::new(-1.0, 0.2, 0.1, 1.0).is_err());
+}
+
+#[test]
+fn abg_fixed_scales_rate_gains() {
+    let mut law = AbgFixed {
+        alpha: 0.5,
+        beta: 0.3,
+        cgamma: 0.05,
+    };
+    let s = law.step(2.0).unwrap();
+    assert_eq!(s.k, [[0.5], [0.15], [0.0125]]);
+}
+
+#[test]
+fn singer_design_is_the_steady_state_kalman_gain() {
+    // Check K against the gain of the physical model's Riccati solution:
+    // K = M H' / (H M H' + R) with M the stabilising solution for (Phi, Q).
+    let (tau, q, sp) = (20.0, 2.0 * 1.0 / 20.0, 10.0);
+    let mut law = SingerDesign::new(tau, q, sp).unwrap();
+    for &dt in &[0.1, 1.0, 7.0] {
+        let s = law.step(dt).unwrap();
+        let (phi, qm) = crate::singer::model(dt, tau, q).unwrap();
+        for i in 0..3 {
+            for j in 0..3 {
+                let rel = (s.phi[i][j] - phi[(i, j)]).abs() / phi[(i, j)].abs().max(1e-300);
+                assert!(rel < 1e-13 || s.phi[i][j] == phi[(i, j)], "phi dt={dt}");
+            }
+        }
+        // Iterate the Riccati recursion to convergence (independent route).
+        let mut m = nalgebra::Matrix3::<f64>::identity() * 1e4;
+        let r = sp * sp;
+        let mut k = nalgebra::Vector3::zeros();
+        for _ in 0..20_000 {
+            let s0 = m[(0, 0)] + r;
+            k = m.column(0) / s0;
+            let p = m - k * m.row(0);
+            m = phi * p * phi.transpose() + qm;
+        }
+        for i in 0..3 {
+            let rel = (s.k[i][0] - k[i]).abs() / k[i].abs();
+            assert!(rel < 1e-8, "dt={dt} i={i}: {} vs {}", s.k[i][0], k[i]);
+        }
+    }
+    assert!(SingerDesign::new(0.0, 1.0, 1.0).is_err());
+    assert!(SingerDesign::new(1.0, 1.0, -1.0).is_err());
+}

@@ -1,0 +1,248 @@
+use super::*;
+use crate::irregular::{AbDesign, AbFixed};
+
+fn ab_filter(laws: &[AbDesign]) -> TrackFilter<'_, AbDesign, 2, 1> {
+    TrackFilter {
+        laws,
+        h: [[1.0, 0.0]],
+        h_pinv: [[1.0], [0.0]],
+    }
+}
+
+fn opts(init: Init, max_gap: Option<f64>, drop: bool) -> Options {
+    Options {
+        init,
+        t_nominal: 1.0,
+        max_gap,
+        drop_duplicates: drop,
+    }
+}
+
+struct Run {
+    out: Vec<f64>,
+    counts: Vec<Counts>,
+    states: Vec<TrackState>,
+}
+
+fn run(offsets: &[i64], z: &[f64], t: Option<&[f64]>, o: &Options, parallel: bool) -> Result<Run> {
+    let laws = [AbDesign { ratio: 0.3 }];
+    let f = ab_filter(&laws);
+    let n_tracks = offsets.len().saturating_sub(1);
+    let mut states = vec![TrackState::default(); n_tracks];
+    let mut counts = vec![[0i64; 2]; n_tracks];
+    let mut out = vec![0.0; 2 * z.len()];
+    let zs = Samples::flat(z, 1)?;
+    let ts = t.map(|t| Samples::flat(t, 1)).transpose()?;
+    filter_tracks(
+        &f,
+        o,
+        offsets,
+        &zs,
+        ts.as_ref(),
+        &mut states,
+        &mut out,
+        None,
+        &mut counts,
+        parallel,
+        &NoPost,
+    )?;
+    Ok(Run {
+        out,
+        counts,
+        states,
+    })
+}
+
+#[test]
+fn constant_velocity_is_tracked_exactly_with_irregular_times() {
+    let t: Vec<f64> = (0..200)
+        .map(|k| k as f64 + 0.5 * ((k * 7919) % 13) as f64 / 13.0)
+        .collect();
+    let z: Vec<f64> = t.iter().map(|&t| 3.0 - 2.5 * t).collect();
+    let r = run(
+        &[0, 200],
+        &z,
+        Some(&t),
+        &opts(Init::TwoPoint, None, false),
+        false,
+    )
+    .unwrap();
+    for k in 1..200 {
+        assert!(
+            (r.out[k] - z[k]).abs() < 1e-9 * z[k].abs().max(1.0),
+            "k={k}"
+        );
+        assert!(
+            (r.out[200 + k] + 2.5).abs() < 1e-9,
+            "k={k}: {}",
+            r.out[200 + k]
+        );
+    }
+    assert_eq!(r.states[0].t_last, t[199]);
+}
+
+#[test]
+fn ragged_equals_each_track_alone_and_any_blocking() {
+    let lens = [0usize, 5, 1, 40_000, 3, 17];
+    let mut offsets = vec![0i64];
+    for l in lens {
+        offsets.push(offsets.last().unwrap() + l as i64);
+    }
+    let n = *offsets.last().unwrap() as usize;
+    let z: Vec<f64> = (0..n)
+        .map(|g| ((g * 37) % 101) as f64 * 0.1 + if g % 9 == 0 { f64::NAN } else { 0.0 })
+        .collect();
+    let t: Vec<f64> = (0..n)
+        .map(|g| g as f64 * 0.25 + ((g * 13) % 7) as f64 * 0.01)
+        .collect();
+    let o = opts(Init::TwoPoint, Some(2.0), false);
+    let all = run(&offsets, &z, Some(&t), &o, true).unwrap();
+    for i in 0..lens.len() {
+        let (a, b) = (offsets[i] as usize, offsets[i + 1] as usize);
+        let one = run(&[0, (b - a) as i64], &z[a..b], Some(&t[a..b]), &o, false).unwrap();
+        for k in 0..b - a {
+            for c in 0..2 {
+                let (u, v) = (all.out[c * n + a + k], one.out[c * (b - a) + k]);
+                assert!(u.to_bits() == v.to_bits(), "track {i} sample {k}");
+            }
+        }
+    }
+}
+
+#[test]
+fn duplicates_raise_with_track_and_sample_or_are_dropped() {
+    let z = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+    let t = [0.0, 1.0, 2.0, 0.0, 1.0, 1.0];
+    let e = run(
+        &[0, 3, 6],
+        &z,
+        Some(&t),
+        &opts(Init::First, None, false),
+        false,
+    )
+    .err()
+    .unwrap();
+    assert_eq!(
+        e,
+        Error::Data {
+            track: 1,
+            sample: 2,
+            msg: "t=1 not after t=1 (use on_duplicate='drop' to drop such samples)".into()
+        }
+    );
+    let r = run(
+        &[0, 3, 6],
+        &z,
+        Some(&t),
+        &opts(Init::First, None, true),
+        false,
+    )
+    .unwrap();
+    assert_eq!(r.counts, vec![[0, 0], [1, 0]]);
+    assert!(r.out[5].is_nan() && r.out[6 + 5].is_nan());
+    assert_eq!(r.states[1].t_last, 1.0);
+}
+
+#[test]
+fn nan_timestamps_are_errors() {
+    let e = run(
+        &[0, 2],
+        &[1.0, 2.0],
+        Some(&[0.0, f64::NAN]),
+        &opts(Init::First, None, false),
+        false,
+    )
+    .err()
+    .unwrap();
+    assert!(matches!(
+        e,
+        Error::Data {
+            track: 0,
+            sample: 1,
+            ..
+        }
+    ));
+}
+
+#[test]
+fn max_gap_restarts_and_counts() {
+    let z = [0.0, 1.0, 2.0, 100.0, 101.0, 102.0];
+    let t = [0.0, 1.0, 2.0, 10.0, 11.0, 12.0];
+    let r = run(
+        &[0, 6],
+        &z,
+        Some(&t),
+        &opts(Init::TwoPoint, Some(5.0), false),
+        false,
+    )
+    .unwrap();
+    assert_eq!(r.counts, vec![[0, 1]]);
+    // Restarted: position held at 100 with velocity NaN, then two-point.
+    assert_eq!(r.out[3], 100.0);
+    assert!(r.out[6 + 3].is_nan());
+    assert_eq!(r.out[6 + 4], 1.0);
+}
+
+#[test]
+fn bad_offsets_are_shape_errors() {
+    let z = [1.0, 2.0, 3.0];
+    for off in [&[1i64, 3][..], &[0, 2, 1, 3], &[0, 2], &[]] {
+        assert!(
+            matches!(
+                run(off, &z, None, &opts(Init::First, None, false), false),
+                Err(Error::Shape(_))
+            ),
+            "{off:?}"
+        );
+    }
+}
+
+#[test]
+fn fixed_gain_law_without_times_is_the_plain_filter() {
+    let laws = [AbFixed {
+        alpha: 0.5,
+        beta: 0.2,
+    }];
+    let f = TrackFilter {
+        laws: &laws,
+        h: [[1.0, 0.0]],
+        h_pinv: [[1.0], [0.0]],
+    };
+    let z = [1.0, 2.0, 4.0, f64::NAN, 5.0];
+    let mut st = vec![TrackState::default()];
+    let mut counts = vec![[0; 2]];
+    let mut out = vec![0.0; 10];
+    let o = Options {
+        init: Init::First,
+        t_nominal: 2.0,
+        max_gap: None,
+        drop_duplicates: false,
+    };
+    filter_tracks(
+        &f,
+        &o,
+        &[0, 5],
+        &Samples::flat(&z, 1).unwrap(),
+        None,
+        &mut st,
+        &mut out,
+        None,
+        &mut counts,
+        false,
+        &NoPost,
+    )
+    .unwrap();
+    // Hand recursion: x=1, v=0; then xp = x + 2v, x = xp + .5 e, v += .1 e.
+    let (mut x, mut v) = (1.0, 0.0);
+    for k in 1..5 {
+        let xp = x + 2.0 * v;
+        if z[k].is_nan() {
+            x = xp;
+        } else {
+            let e = z[k] - xp;
+            x = xp + 0.5 * e;
+            v += 0.1 * e;
+        }
+        assert!((out[k] - x).abs() < 1e-14 && (out[5 + k] - v).abs() < 1e-14);
+    }
+}

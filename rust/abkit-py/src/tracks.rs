@@ -1,0 +1,353 @@
+//! Bindings of `abkit_core::ragged` and `abkit_core::irregular` (see
+//! `python/abkit/filters.py`): the track kernel over ragged or rectangular
+//! batches with optional timestamps.
+//!
+//! The Python layer validates and views `z` as `(rows, row_len, m)` (one row
+//! of all samples for a flat ragged batch, or the rectangular tracks) and
+//! `t` as `(rows, row_len)` without copying, and allocates the outputs.
+
+use crate::convert::{guard, to_pyerr};
+use crate::filter::{parse_init, with_threads};
+use abkit_core::filter::{states_from_f64, IoFloat};
+use abkit_core::irregular::{
+    AbDesign, AbFixed, AbgDesign, AbgFixed, Constant, GainLaw, SingerDesign, Step,
+};
+use abkit_core::ragged::{filter_tracks, Counts, NoPost, Options, Samples, TrackFilter};
+use numpy::ndarray::{ArrayView2, ArrayView3};
+use numpy::{Element, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+
+/// Any-strides view as `Samples` (rows, row_len, m).
+fn samples<'a, T: Copy>(ptr: *const T, dims: [usize; 3], s: [isize; 3]) -> Samples<'a, T> {
+    let [rows, len, m] = dims;
+    if rows == 0 || len == 0 || m == 0 {
+        return Samples {
+            data: &[],
+            base: 0,
+            s_row: 0,
+            s_sample: 0,
+            s_comp: 0,
+            row_len: len,
+            n_rows: rows,
+            m,
+        };
+    }
+    let (mut lo, mut hi) = (0isize, 0isize);
+    for (d, st) in dims.iter().zip(s) {
+        let span = (*d as isize - 1) * st;
+        lo += span.min(0);
+        hi += span.max(0);
+    }
+    // SAFETY: every element of the view lies in [ptr + lo, ptr + hi]
+    // (elements, same allocation, owned by the numpy array that the caller's
+    // readonly borrow keeps alive and unmodified for 'a).
+    let data = unsafe { std::slice::from_raw_parts(ptr.offset(lo), (hi - lo + 1) as usize) };
+    Samples {
+        data,
+        base: (-lo) as usize,
+        s_row: s[0],
+        s_sample: s[1],
+        s_comp: s[2],
+        row_len: len,
+        n_rows: rows,
+        m,
+    }
+}
+
+fn z_samples<'a, T: Copy>(v: &ArrayView3<'a, T>) -> Samples<'a, T> {
+    let (r, l, m) = v.dim();
+    let s = v.strides();
+    samples(v.as_ptr(), [r, l, m], [s[0], s[1], s[2]])
+}
+
+fn t_samples<'a>(v: &ArrayView2<'a, f64>) -> Samples<'a, f64> {
+    let (r, l) = v.dim();
+    let s = v.strides();
+    samples(v.as_ptr(), [r, l, 1], [s[0], s[1], 1])
+}
+
+/// The gain law of a filter, by kind, with its parameter rows.
+enum Law {
+    Constant(Vec<f64>),
+    AbFixed(Vec<AbFixed>),
+    AbDesign(Vec<AbDesign>),
+    AbgFixed(Vec<AbgFixed>),
+    AbgDesign(Vec<AbgDesign>),
+    Singer(Vec<SingerDesign>),
+}
+
+fn parse_law(kind: &str, params: &[f64], width: usize) -> PyResult<Law> {
+    let need = match kind {
+        "constant" => width,
+        "ab-fixed" => 2,
+        "ab-design" => 1,
+        "abg-fixed" => 3,
+        "abg-design" => 4,
+        "singer" => 3,
+        _ => {
+            return Err(PyValueError::new_err(format!("unknown gain law {kind:?}")));
+        }
+    };
+    if need == 0 || params.is_empty() || params.len() % need != 0 {
+        return Err(PyValueError::new_err(
+            "gain law parameters have the wrong size",
+        ));
+    }
+    let rows = params.chunks_exact(need);
+    let err = |e| to_pyerr((0, e));
+    Ok(match kind {
+        "constant" => Law::Constant(params.to_vec()),
+        "ab-fixed" => Law::AbFixed(
+            rows.map(|r| AbFixed {
+                alpha: r[0],
+                beta: r[1],
+            })
+            .collect(),
+        ),
+        "ab-design" => Law::AbDesign(rows.map(|r| AbDesign { ratio: r[0] }).collect()),
+        "abg-fixed" => Law::AbgFixed(
+            rows.map(|r| AbgFixed {
+                alpha: r[0],
+                beta: r[1],
+                cgamma: r[2],
+            })
+            .collect(),
+        ),
+        "abg-design" => Law::AbgDesign(
+            rows.map(|r| AbgDesign::new(r[0], r[1], r[2], r[3]))
+                .collect::<abkit_core::Result<_>>()
+                .map_err(err)?,
+        ),
+        _ => Law::Singer(
+            rows.map(|r| SingerDesign::new(r[0], r[1], r[2]))
+                .collect::<abkit_core::Result<_>>()
+                .map_err(err)?,
+        ),
+    })
+}
+
+struct Io<'py, T: Element> {
+    z: Bound<'py, PyArray3<T>>,
+    out: Bound<'py, PyArray2<T>>,
+    resid: Option<Bound<'py, PyArray2<T>>>,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_typed<'py, T: IoFloat + Element, L: GainLaw<N, M>, const N: usize, const M: usize>(
+    py: Python<'py>,
+    io: Io<'py, T>,
+    t: Option<&PyReadonlyArray2<'py, f64>>,
+    offsets: &[i64],
+    laws: &[L],
+    h: &[f64],
+    h_pinv: &[f64],
+    opts: Options,
+    state: &Bound<'py, PyArray2<f64>>,
+    counts: &Bound<'py, PyArray2<i64>>,
+    threads: Option<usize>,
+) -> PyResult<()> {
+    if h.len() != N * M || h_pinv.len() != N * M {
+        return Err(PyValueError::new_err("H has the wrong size"));
+    }
+    let filt = TrackFilter {
+        laws,
+        h: std::array::from_fn(|j| std::array::from_fn(|i| h[j * N + i])),
+        h_pinv: std::array::from_fn(|i| std::array::from_fn(|j| h_pinv[i * M + j])),
+    };
+    let zr = io.z.readonly();
+    let zv = zr.as_array();
+    let zs = z_samples(&zv);
+    let tv = t.map(|t| t.as_array());
+    let ts = tv.as_ref().map(t_samples);
+    let mut out_rw = io.out.readwrite();
+    let out = out_rw.as_slice_mut()?;
+    let mut resid_rw = io.resid.as_ref().map(|r| r.readwrite());
+    let resid = match resid_rw.as_mut() {
+        Some(r) => Some(r.as_slice_mut()?),
+        None => None,
+    };
+    let mut st_rw = state.readwrite();
+    let states = states_from_f64(st_rw.as_slice_mut()?).map_err(|e| to_pyerr((0, e)))?;
+    let mut ct_rw = counts.readwrite();
+    let ct_flat = ct_rw.as_slice_mut()?;
+    if ct_flat.len() % 2 != 0 {
+        return Err(PyValueError::new_err("counts must have 2 columns"));
+    }
+    // SAFETY: [i64; 2] has the layout of two consecutive i64; the slice is
+    // reborrowed exclusively.
+    let cts: &mut [Counts] = unsafe {
+        std::slice::from_raw_parts_mut(ct_flat.as_mut_ptr().cast::<Counts>(), ct_flat.len() / 2)
+    };
+    let res = py.detach(|| {
+        guard(|| {
+            with_threads(threads, |par| {
+                filter_tracks(
+                    &filt,
+                    &opts,
+                    offsets,
+                    &zs,
+                    ts.as_ref(),
+                    states,
+                    out,
+                    resid,
+                    cts,
+                    par,
+                    &NoPost,
+                )
+            })
+        })
+    })??;
+    res.map_err(|e| to_pyerr((0, e)))
+}
+
+fn constant_laws<const N: usize, const M: usize>(p: &[f64]) -> PyResult<Vec<Constant<N, M>>> {
+    let w = N * N + N * M;
+    if p.is_empty() || p.len() % w != 0 {
+        return Err(PyValueError::new_err("Phi, K sizes do not match n, m"));
+    }
+    Ok(p.chunks_exact(w)
+        .map(|c| {
+            Constant(Step {
+                phi: std::array::from_fn(|i| std::array::from_fn(|j| c[i * N + j])),
+                k: std::array::from_fn(|i| std::array::from_fn(|j| c[N * N + i * M + j])),
+            })
+        })
+        .collect())
+}
+
+/// The track kernel. `z` is `(rows, row_len, m)`, `t` `(rows, row_len)` or
+/// None, `offsets` int64 `(n_tracks + 1,)`, `law` one of "constant" (params
+/// rows `Phi (n*n) | K (n*m)`), "ab-fixed" (alpha, beta), "ab-design"
+/// (sigma_w/sigma_v), "abg-fixed" (alpha, beta, c*gamma), "abg-design"
+/// (sigma_p, sigma_v, sigma_a, sigma_m), "singer" (tau, q, sigma_pos);
+/// `out` `(n, N)`, `resid` `(N, m)`, `state` `(n_tracks, STATE_WIDTH)`,
+/// `counts` int64 `(n_tracks, 2)`.
+#[pyfunction]
+#[pyo3(name = "filter_tracks", signature = (z, t, offsets, n, m, law, params, h, h_pinv, t_nominal, init, max_gap, drop_duplicates, state, out, counts, resid=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn filter_tracks_py<'py>(
+    py: Python<'py>,
+    z: &Bound<'py, PyAny>,
+    t: Option<PyReadonlyArray2<'py, f64>>,
+    offsets: PyReadonlyArray1<'py, i64>,
+    n: usize,
+    m: usize,
+    law: &str,
+    params: PyReadonlyArray1<'py, f64>,
+    h: PyReadonlyArray1<'py, f64>,
+    h_pinv: PyReadonlyArray1<'py, f64>,
+    t_nominal: f64,
+    init: &str,
+    max_gap: Option<f64>,
+    drop_duplicates: bool,
+    state: Bound<'py, PyArray2<f64>>,
+    out: &Bound<'py, PyAny>,
+    counts: Bound<'py, PyArray2<i64>>,
+    resid: Option<&Bound<'py, PyAny>>,
+    threads: Option<usize>,
+) -> PyResult<()> {
+    let opts = Options {
+        init: parse_init(init)?,
+        t_nominal,
+        max_gap,
+        drop_duplicates,
+    };
+    let law = parse_law(law, params.as_slice()?, n * n + n * m)?;
+    let offsets = offsets.as_slice()?;
+    let (h, hp) = (h.as_slice()?, h_pinv.as_slice()?);
+    let is64 = if z.cast::<PyArray3<f64>>().is_ok() {
+        true
+    } else if z.cast::<PyArray3<f32>>().is_ok() {
+        false
+    } else {
+        return Err(PyTypeError::new_err(
+            "z must be a 3-D float32 or float64 array",
+        ));
+    };
+    macro_rules! typed {
+        ($laws:expr, $n:literal, $m:literal) => {{
+            if is64 {
+                let io = Io::<f64> {
+                    z: z.cast::<PyArray3<f64>>()?.clone(),
+                    out: out.cast::<PyArray2<f64>>()?.clone(),
+                    resid: resid
+                        .map(|r| r.cast::<PyArray2<f64>>().cloned())
+                        .transpose()?,
+                };
+                run_typed::<f64, _, $n, $m>(
+                    py,
+                    io,
+                    t.as_ref(),
+                    offsets,
+                    $laws,
+                    h,
+                    hp,
+                    opts,
+                    &state,
+                    &counts,
+                    threads,
+                )
+            } else {
+                let io = Io::<f32> {
+                    z: z.cast::<PyArray3<f32>>()?.clone(),
+                    out: out.cast::<PyArray2<f32>>()?.clone(),
+                    resid: resid
+                        .map(|r| r.cast::<PyArray2<f32>>().cloned())
+                        .transpose()?,
+                };
+                run_typed::<f32, _, $n, $m>(
+                    py,
+                    io,
+                    t.as_ref(),
+                    offsets,
+                    $laws,
+                    h,
+                    hp,
+                    opts,
+                    &state,
+                    &counts,
+                    threads,
+                )
+            }
+        }};
+    }
+    let kin = |want: usize| -> PyResult<()> {
+        if n == want && m == 1 {
+            Ok(())
+        } else {
+            Err(PyValueError::new_err("gain law does not match n, m"))
+        }
+    };
+    match &law {
+        Law::AbFixed(l) => {
+            kin(2)?;
+            typed!(l, 2, 1)
+        }
+        Law::AbDesign(l) => {
+            kin(2)?;
+            typed!(l, 2, 1)
+        }
+        Law::AbgFixed(l) => {
+            kin(3)?;
+            typed!(l, 3, 1)
+        }
+        Law::AbgDesign(l) => {
+            kin(3)?;
+            typed!(l, 3, 1)
+        }
+        Law::Singer(l) => {
+            kin(3)?;
+            typed!(l, 3, 1)
+        }
+        Law::Constant(p) => {
+            macro_rules! go {
+                ($n:literal, $m:literal) => {{
+                    let l = constant_laws::<$n, $m>(p)?;
+                    typed!(&l, $n, $m)
+                }};
+            }
+            dispatch!(n, m, go)
+        }
+    }
+}
