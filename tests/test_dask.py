@@ -224,3 +224,63 @@ def test_doctests() -> None:
 
     res = doctest.testmod(adask, optionflags=doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS)
     assert res.failed == 0 and res.attempted > 0
+
+
+# -- filter_frame -----------------------------------------------------------------------
+def _long_frame(seed=0, n_tracks=12):
+    pd = pytest.importorskip("pandas")
+    rng = np.random.default_rng(seed)
+    parts = []
+    for i in range(n_tracks):
+        n = int(rng.integers(1, 60))
+        t = np.cumsum(rng.uniform(0.5, 2.0, n))
+        x = np.cumsum(rng.normal(size=n))
+        x[rng.random(n) < 0.1] = np.nan
+        parts.append(pd.DataFrame({"id": f"s{i}", "t": t, "x": x, "y": rng.normal(size=n)}))
+    df = pd.concat(parts).sample(frac=1.0, random_state=seed).reset_index(drop=True)
+    df["row"] = np.arange(len(df))
+    return df
+
+
+def test_filter_frame_equals_in_memory(client) -> None:
+    dd = pytest.importorskip("dask.dataframe")
+    from abkit import frame
+
+    df = _long_frame(1)
+    f = abkit.AlphaBetaFilter.from_noise(0.5, 1.0, 1.0)
+    want = frame.filter(df, id="id", time="t", columns=["x", "y"], filter=f)
+    ddf = dd.from_pandas(df, npartitions=4).shuffle(on="id")
+    out = adask.filter_frame(ddf, id="id", time="t", columns=["x", "y"], filter=f)
+    assert list(out.columns) == list(want.columns)
+    got = out.compute().sort_values("row").reset_index(drop=True)
+    for c in want.columns:
+        if c.endswith(("_pos", "_vel", "_res")):
+            assert _eq(got[c].to_numpy(), want[c].to_numpy()), c
+
+
+def test_filter_frame_indexed_by_id(client) -> None:
+    dd = pytest.importorskip("dask.dataframe")
+    from abkit import frame
+
+    df = _long_frame(2)
+    f = abkit.AlphaBetaFilter(0.5, 0.2, 1.0)
+    want = frame.filter(df, id="id", time="t", columns="x", filter=f)
+    ddf = dd.from_pandas(df, npartitions=3).set_index("id")
+    assert ddf.known_divisions
+    got = adask.filter_frame(ddf, id="id", time="t", columns="x", filter=f).compute()
+    assert got.index.name == "id"
+    got = got.sort_values("row")
+    assert _eq(got["x_vel"].to_numpy(), want["x_vel"].to_numpy())
+
+
+def test_filter_frame_track_split_across_partitions_raises(client) -> None:
+    dd = pytest.importorskip("dask.dataframe")
+    df = _long_frame(3)
+    ddf = dd.from_pandas(df, npartitions=3)  # rows in random order: tracks span partitions
+    out = adask.filter_frame(ddf, id="id", time="t", columns="x", filter=abkit.AlphaBetaFilter(0.5, 0.2, 1.0))
+    with pytest.raises(ValueError, match=r"track id='s\d+' is in partitions \d and \d.*shuffle\(on='id'\)"):
+        out.compute()
+    with pytest.raises(ValueError, match="columns: no column 'z'"):
+        adask.filter_frame(ddf, id="id", columns="z", filter=abkit.AlphaBetaFilter(0.5, 0.2, 1.0))
+    with pytest.raises(ValueError, match="id: no column 'ship'"):
+        adask.filter_frame(ddf, id="ship", columns="x", filter=abkit.AlphaBetaFilter(0.5, 0.2, 1.0))

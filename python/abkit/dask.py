@@ -223,13 +223,12 @@ def run(
 
     Examples
     --------
-    >>> import numpy as np, dask, dask.array as da
+    >>> import numpy as np, dask.array as da
     >>> from abkit import AlphaBetaFilter
     >>> f = AlphaBetaFilter(0.5, 0.2, 1.0)
     >>> z = np.random.default_rng(0).normal(size=(6, 100))
     >>> r = run(f, da.from_array(z, chunks=(3, 40)))
-    >>> with dask.config.set(scheduler="synchronous"):
-    ...     res = r.compute()
+    >>> res = r.compute()
     >>> bool(np.array_equal(res.states, f.run(z).states, equal_nan=True))
     True
     """
@@ -399,13 +398,12 @@ def filter_frame(ddf: Any, *, id: str, check: bool = True, **kw: Any) -> Any:
 
     Examples
     --------
-    >>> import pandas as pd, dask, dask.dataframe as dd
+    >>> import pandas as pd, dask.dataframe as dd
     >>> from abkit import AlphaBetaFilter
     >>> df = pd.DataFrame({"id": [1, 1, 2, 2, 1], "t": [0.0, 1.0, 0.0, 1.0, 2.0], "x": [0.0, 1.0, 5.0, 7.0, 2.0]})
     >>> ddf = dd.from_pandas(df, npartitions=2).shuffle(on="id")
     >>> out = filter_frame(ddf, id="id", time="t", columns="x", filter=AlphaBetaFilter(0.5, 0.2, 1.0))
-    >>> with dask.config.set(scheduler="synchronous"):
-    ...     got = out.compute().sort_values(["id", "t"])
+    >>> got = out.compute().sort_values(["id", "t"])
     >>> got["x_vel"].round(6).tolist()
     [nan, 1.0, 1.0, nan, 2.0]
     """
@@ -428,7 +426,7 @@ def filter_frame(ddf: Any, *, id: str, check: bool = True, **kw: Any) -> Any:
     need_check = check and not (index_is_id and ddf.known_divisions)
     args: List[Any] = []
     if need_check:
-        ids = ddf.map_partitions(_partition_ids, id, index_is_id, meta=object).to_delayed()
+        ids = [delayed(_partition_ids)(p, id, index_is_id) for p in ddf.to_delayed()]
         args.append(delayed(_check_ids)(ids, id))
 
     def part(pdf: Any, *ok: Any) -> Any:

@@ -287,7 +287,7 @@ def _seconds(df: Any, lib: str, name: str) -> np.ndarray:
     bad = ~np.isfinite(t)
     if bad.any():
         i = int(np.argmax(bad))
-        raise ValueError(f"time column {name!r}: timestamp at row {i} is {'missing' if np.isnan(t[i]) else t[i]!r}")
+        raise ValueError(f"time column {name!r}: timestamp at row {i} is " + ("missing" if np.isnan(t[i]) else repr(float(t[i]))))
     return t
 
 
@@ -381,7 +381,7 @@ def filter(
     ...                    "x": [0.0, 10.0, 1.0, 12.0, 1.5]})
     >>> out = frame.filter(df, id="ship", time="t", columns="x", filter=AlphaBetaFilter(0.5, 0.2, 1.0))
     >>> out[["ship", "x_pos", "x_vel"]].round(3).values.tolist()
-    [[7.0, 0.0, nan], [3.0, 10.0, nan], [7.0, 1.0, 1.0], [3.0, 12.0, 1.0], [7.0, 1.5, 1.0]]
+    [[7.0, 0.0, nan], [3.0, 10.0, nan], [7.0, 1.0, 1.0], [3.0, 12.0, 1.0], [7.0, 2.0, 0.867]]
     >>> out.attrs["abkit"]
     {'n_tracks': 2, 'n_rows': 5, 'n_dropped': 0, 'n_restarts': 0}
     """
@@ -443,7 +443,7 @@ def filter(
             states = g.put(r.states)
             for k in range(n):
                 new[row[k]] = states[k]
-            if return_residuals:
+            if r.residuals is not None:
                 new[row[n]] = g.put(r.residuals)
     else:
         for row, z in zip(names, zs):
