@@ -98,8 +98,7 @@ def test_abg_and_singer_filters(tmp_path, z) -> None:
     assert _eq(np.load(tmp_path / "o.npy"), want)
     assert main(["run", str(tmp_path / "z.npy"), "-o", str(tmp_path / "o.npy"), "--filter", "singer", "-T", "0.5",
                  "--tau", "10", "--sigma-m", "2", "--sigma-pos", "5", "--chunk-rows", "100", "-q"]) == 0
-    s = singer.steady_state(0.5, 10.0, 2.0, 5.0)
-    assert _eq(np.load(tmp_path / "o.npy"), abkit.FixedGainFilter(s.Phi, s.H, s.K, 0.5).run(z).states)
+    assert _eq(np.load(tmp_path / "o.npy"), singer.tracking_filter(0.5, 10.0, 2.0, 5.0).run(z).states)
 
 
 def test_design_from_noise(tmp_path, z) -> None:
@@ -266,3 +265,146 @@ def test_missing_pyarrow_gives_install_advice(tmp_path) -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 1, out.stderr
     assert "install abkit[frame]" in out.stderr and "Traceback" not in out.stderr
+
+
+# -- long tables ---------------------------------------------------------------------------
+def _long_df(seed=0, n_tracks=15, shuffle=False, dup=False):
+    pd = pytest.importorskip("pandas")
+    rng = np.random.default_rng(seed)
+    parts = []
+    for i in range(n_tracks):
+        n = int(rng.integers(1, 90))
+        t = np.round(np.cumsum(rng.uniform(0.5, 2.0, n)), 3)
+        if dup and n > 4:
+            t[3] = t[2]
+        x = np.cumsum(rng.normal(size=n))
+        x[rng.random(n) < 0.1] = np.nan
+        parts.append(pd.DataFrame({"ship": f"v{i}", "t": t, "x": x, "y": rng.normal(size=n), "note": "a,b"}))
+    df = pd.concat(parts, ignore_index=True)
+    if shuffle:
+        df = df.sample(frac=1.0, random_state=seed).reset_index(drop=True)
+    return df
+
+
+def _expected_long(df, f, cols=("x", "y"), **kw):
+    from abkit import frame
+
+    return frame.filter(df, id="ship", time="t", columns=list(cols), filter=f, **kw)
+
+
+LONG = ["--id", "ship", "--time", "t", "--columns", "x,y", *AB]
+
+
+def _read(path, fmt):
+    import pandas as pd
+
+    return pd.read_csv(path, keep_default_na=True) if fmt == "csv" else pd.read_parquet(path)
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+@pytest.mark.parametrize("chunk", ["1", "7", "64", "1000000"])
+def test_long_streaming_equals_whole_and_frame(tmp_path, fmt, chunk) -> None:
+    df = _long_df(1)
+    src, dst = tmp_path / f"l.{fmt}", tmp_path / f"o.{fmt}"
+    df.to_csv(src, index=False) if fmt == "csv" else df.to_parquet(src)
+    out = cli(str(src), "-o", str(dst), *LONG, "--chunk-rows", chunk)
+    assert out.returncode == 0, out.stderr
+    assert "warning" not in out.stderr
+    got = _read(dst, fmt)
+    want = _expected_long(df, abkit.AlphaBetaFilter(0.5, 0.2, 0.5))
+    assert list(got.columns) == list(want.columns)
+    assert got["note"].tolist() == df["note"].tolist()
+    for c in want.columns:
+        if c.endswith(("_pos", "_vel", "_res")):
+            assert _eq(got[c], want[c]), c
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_long_not_grouped_is_loaded_whole_with_a_warning(tmp_path, fmt) -> None:
+    df = _long_df(2, shuffle=True)
+    src, dst = tmp_path / f"l.{fmt}", tmp_path / f"o.{fmt}"
+    df.to_csv(src, index=False) if fmt == "csv" else df.to_parquet(src)
+    out = cli(str(src), "-o", str(dst), *LONG, "--chunk-rows", "10")
+    assert out.returncode == 0, out.stderr
+    assert "not grouped by 'ship'" in out.stderr and "loading the whole file" in out.stderr
+    got = _read(dst, fmt)
+    want = _expected_long(df, abkit.AlphaBetaFilter(0.5, 0.2, 0.5))
+    assert got["ship"].tolist() == df["ship"].tolist()  # rows in the file's order
+    for c in ("x_pos", "x_vel", "y_res"):
+        assert _eq(got[c], want[c]), c
+
+
+def test_long_times_going_back_within_a_track_fall_back(tmp_path) -> None:
+    df = _long_df(3)
+    i = int(np.flatnonzero((df["ship"] == df["ship"].shift()).to_numpy())[5])
+    df.loc[[i - 1, i]] = df.loc[[i, i - 1]].to_numpy()  # swap two reports of one track
+    df.to_parquet(tmp_path / "l.parquet")
+    out = cli(str(tmp_path / "l.parquet"), "-o", str(tmp_path / "o.parquet"), *LONG, "--chunk-rows", "16")
+    assert out.returncode == 0 and "times of a track go back" in out.stderr
+    got = _read(tmp_path / "o.parquet", "parquet")
+    want = _expected_long(df, abkit.AlphaBetaFilter(0.5, 0.2, 0.5))
+    assert _eq(got["x_vel"], want["x_vel"])
+
+
+def test_long_duplicates_raise_naming_file_row_and_column(tmp_path) -> None:
+    df = _long_df(4, dup=True)
+    df.to_csv(tmp_path / "l.csv", index=False)
+    out = cli(str(tmp_path / "l.csv"), "-o", str(tmp_path / "o.csv"), *LONG, "--chunk-rows", "50")
+    assert out.returncode == 1, out.stderr
+    first = next(g for _, g in df.groupby("ship", sort=False) if len(g) > 4)
+    row = int(first.index[3]) + 1
+    assert f"l.csv, row {row} (ship '{first['ship'].iloc[0]}'), column 't': " in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("chunk", ["5", "1000000"])
+def test_long_drop_duplicates_and_max_gap_design_filter(tmp_path, chunk) -> None:
+    df = _long_df(5, dup=True)
+    df.to_parquet(tmp_path / "l.parquet")
+    args = ["--id", "ship", "--time", "t", "--columns", "x", "--sigma-w", "0.5", "--sigma-v", "1", "-T", "1",
+            "--on-duplicate", "drop", "--max-gap", "1.5", "--chunk-rows", chunk]
+    assert main(["run", str(tmp_path / "l.parquet"), "-o", str(tmp_path / "o.parquet"), *args, "-q"]) == 0
+    got = _read(tmp_path / "o.parquet", "parquet")
+    f = abkit.AlphaBetaFilter.from_noise(0.5, 1.0, 1.0)
+    want = _expected_long(df, f, cols=("x",), on_duplicate="drop", max_gap=1.5)
+    assert want.attrs["abkit"]["n_dropped"] > 0 and want.attrs["abkit"]["n_restarts"] > 0
+    for c in ("x_pos", "x_vel", "x_res"):
+        assert _eq(got[c], want[c]), c
+
+
+# -- ragged .npz ---------------------------------------------------------------------------
+@pytest.mark.parametrize("chunk", ["1", "9", "1000000"])
+def test_ragged_npz_streaming_equals_in_memory(tmp_path, chunk) -> None:
+    rng = np.random.default_rng(6)
+    lens = np.array([0, 5, 1, 0, 0, 40, 3, 17, 0])
+    offsets = np.concatenate([[0], np.cumsum(lens)])
+    z = np.cumsum(rng.normal(size=offsets[-1]))
+    t = np.concatenate([np.cumsum(rng.uniform(0.5, 2, n)) for n in lens])
+    t[8] = t[7]  # a duplicate in the 40-sample track
+    np.savez(tmp_path / "r.npz", z=z, t=t, off=offsets)
+    out = cli(str(tmp_path / "r.npz"), "-o", str(tmp_path / "o.npz"), *AB, "--time", "t", "--offsets", "off",
+              "--on-duplicate", "drop", "--max-gap", "1.8", "--chunk-rows", chunk)
+    assert out.returncode == 0, out.stderr
+    want = F.run(z, t=t, offsets=offsets, on_duplicate="drop", max_gap=1.8, return_residuals=True)
+    with np.load(tmp_path / "o.npz") as o:
+        assert _eq(o["position"], want.position) and _eq(o["velocity"], want.velocity)
+        assert _eq(o["residual"], want.residuals)
+        assert o["n_dropped"].tolist() == want.n_dropped.tolist() and o["n_dropped"].sum() == 1
+        assert o["n_restarts"].tolist() == want.n_restarts.tolist()
+        assert o["offsets"].tolist() == offsets.tolist()
+
+
+def test_ragged_npz_bad_offsets(tmp_path) -> None:
+    np.savez(tmp_path / "r.npz", z=np.zeros(5), off=np.array([0, 3, 2, 5]))
+    out = cli(str(tmp_path / "r.npz"), "-o", str(tmp_path / "o.npz"), *AB, "--offsets", "off")
+    assert out.returncode == 1 and "offsets must be" in out.stderr
+
+
+def test_npz_timestamps_rectangular(tmp_path, z) -> None:
+    t = np.cumsum(np.random.default_rng(7).uniform(0.5, 2, z.shape), axis=1)
+    np.savez(tmp_path / "a.npz", z=z, t=t)
+    assert main(["run", str(tmp_path / "a.npz"), "-o", str(tmp_path / "o.npz"), *AB, "--time", "t", "--chunk-rows", "100", "-q"]) == 0
+    want = F.run(z, t=t, return_residuals=True)
+    with np.load(tmp_path / "o.npz") as o:
+        assert _eq(o["velocity"], want.velocity) and _eq(o["residual"], want.residuals)
+        assert o["n_dropped"].shape == (5,)

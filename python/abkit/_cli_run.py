@@ -188,7 +188,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 def _make_filter(p: argparse.ArgumentParser, a: argparse.Namespace) -> Any:
     """The filter chosen by ``--filter`` and the design flags (usage errors exit 2)."""
     from . import abg, singer
-    from .filters import AlphaBetaFilter, FixedGainFilter
+    from .filters import AlphaBetaFilter, AlphaBetaGammaFilter
 
     def reject(names: Sequence[str], family: str) -> None:
         bad = [n for n in names if getattr(a, n) is not None]
@@ -208,6 +208,9 @@ def _make_filter(p: argparse.ArgumentParser, a: argparse.Namespace) -> Any:
             if a.time is None:
                 p.error("give the sampling period -T (or timestamps with --time)")
             T = 1.0
+        if a.sigma_w is not None and a.sigma_v is not None:
+            # from the noise: with --time, the design for every step dt (gain_schedule "design")
+            return AlphaBetaFilter.from_noise(a.sigma_w, a.sigma_v, T)
         return AlphaBetaFilter.from_design(dab, T=T)
     if a.filter == "abg":
         reject(_AB_FLAGS + _SINGER_FLAGS, "abg")
@@ -223,7 +226,9 @@ def _make_filter(p: argparse.ArgumentParser, a: argparse.Namespace) -> Any:
         if srcs[0]:
             if a.sigma_a is None or a.sigma_m is None:
                 p.error("--sigma-a and --sigma-m are required (--sigma-p, --sigma-v default to 0)")
-            d = abg.from_noise(a.sigma_p or 0.0, a.sigma_v or 0.0, a.sigma_a, a.sigma_m, h, convention=a.convention)
+            # from the noise: with --time, the design for every step dt (gain_schedule "design")
+            return AlphaBetaGammaFilter.from_noise(a.sigma_p or 0.0, a.sigma_v or 0.0, a.sigma_a, a.sigma_m, h,
+                                                   convention=a.convention)
         elif srcs[1]:
             d = abg.from_tracking_index(a.tracking_index, model=a.model, convention=a.convention)
         else:
@@ -234,8 +239,7 @@ def _make_filter(p: argparse.ArgumentParser, a: argparse.Namespace) -> Any:
     reject(_AB_FLAGS + _ABG_FLAGS + ("alpha", "beta", "tracking_index", "sigma_v"), "singer")
     if a.T is None or a.tau is None or a.sigma_m is None or a.sigma_pos is None:
         p.error("--filter singer needs -T, --tau, --sigma-m and --sigma-pos")
-    s = singer.steady_state(a.T, a.tau, a.sigma_m, a.sigma_pos)
-    return FixedGainFilter(s.Phi, s.H, s.K, a.T)
+    return singer.tracking_filter(a.T, a.tau, a.sigma_m, a.sigma_pos)
 
 
 def _main(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
@@ -424,15 +428,183 @@ class _Job:
             raise
 
     def _ragged_arrays(self, z: np.ndarray, t: Optional[np.ndarray], offsets: np.ndarray, key: str, tmp: str) -> None:
-        raise DataError(f"{self.src}: ragged .npz input (--offsets) needs abkit.frame")
+        """Flat ``z`` with ``offsets`` (track i = z[offsets[i]:offsets[i+1]]),
+        streamed in row chunks; a track cut by a chunk boundary continues
+        from its state. Same as ``filter.run(z, t=t, offsets=offsets)``."""
+        from .dask import _state_rows
+        from .frame import Grouping, run_grouped
+
+        self._check_array(key, z, (1,))
+        if offsets.dtype.kind not in "iu" or offsets.ndim != 1 or offsets.size < 1 or offsets[0] != 0 \
+                or np.any(np.diff(offsets) < 0) or offsets[-1] != z.size:
+            raise DataError(f"{self.src}: offsets must be 1-D integers starting at 0, non-decreasing, ending at "
+                            f"len(z) = {z.size}")
+        if t is not None and (t.shape != z.shape or t.dtype.kind not in "iuf"):
+            raise DataError(f"{self.src}: timestamps must be numbers of the shape of z {z.shape}, got {t.shape} {t.dtype}")
+        offsets = offsets.astype(np.int64)
+        n_tracks, N = offsets.size - 1, z.size
+        dtype = z.dtype if z.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+        n = self.filt.n
+        names = ["position", "velocity", "acceleration"][:n] + ["residual"]
+        parts = {s: np.lib.format.open_memmap(os.path.join(tmp, f"{s}.npy"), mode="w+", dtype=dtype, shape=(N,)) for s in names}
+        dropped = np.zeros(n_tracks, dtype=np.int64)
+        restarts = np.zeros(n_tracks, dtype=np.int64)
+        out_path = self._tmp()
+        try:
+            prog = Progress(N, "samples", self.progress)
+            carry = None
+            for r0 in range(0, N, self.chunk):
+                r1 = min(N, r0 + self.chunk)
+                # the non-empty tracks with rows in [r0, r1), bounds relative to r0
+                k0 = int(np.searchsorted(offsets, r0, side="right")) - 1
+                k1 = int(np.searchsorted(offsets, r1, side="left"))
+                lens = np.diff(np.clip(offsets[k0:k1 + 1] - r0, 0, r1 - r0))
+                tracks = np.arange(k0, k1)[lens > 0]
+                local = np.concatenate([[0], np.cumsum(lens[lens > 0])])
+                g = Grouping(None, local.astype(np.int64), r1 - r0)
+                zb = np.asarray(z[r0:r1], dtype=dtype)
+                tb = None if t is None else np.asarray(t[r0:r1], dtype=np.float64)
+                cont = carry is not None and offsets[tracks[0]] < r0
+
+                def where(k: int, smp: int, _tr: np.ndarray = tracks, _g: Grouping = g, _r0: int = r0) -> str:
+                    return f"track {int(_tr[k])}, sample {_r0 + _g.row(k, smp) - int(offsets[_tr[k]])}"
+
+                try:
+                    r = run_grouped(self.filt, g, [zb], tb, init=self.init, kw=self.kw,
+                                    first_state=[carry] if cont else None, where=where)[0]
+                except ValueError as exc:
+                    raise DataError(f"{self.src}: {exc}") from None
+                for c, name in enumerate(names[:-1]):
+                    parts[name][r0:r1] = r.states[c]
+                parts["residual"][r0:r1] = r.residuals
+                np.add.at(dropped, tracks, r.n_dropped)
+                np.add.at(restarts, tracks, r.n_restarts)
+                nt = g.offsets.size - 1
+                carry = _state_rows(r.state, nt - 1, nt)
+                prog.update(r1)
+            prog.close()
+            for m in parts.values():
+                m.flush()
+            extra: Dict[str, np.ndarray] = {"offsets": offsets}
+            if t is not None:
+                extra.update(n_dropped=dropped, n_restarts=restarts)
+            _write_npz(out_path, [os.path.join(tmp, f"{s}.npy") for s in names], extra)
+            del parts
+            os.replace(out_path, self.dst)
+        except BaseException:
+            _remove(out_path)
+            raise
 
     # ---------------------------------------------------------------- tables
     def table(self, id_col: Optional[str], time_col: Optional[str], columns: Optional[List[str]]) -> None:
         reader = _TableReader(self.src, self.fmt, self.chunk, id_col, time_col, columns)
         if id_col is None:
             self._wide(reader, time_col)
-        else:
-            raise DataError(f"{self.src}: long tables (--id) need abkit.frame")
+            return
+        try:
+            self._long(reader, id_col, time_col, stream=True)
+        except _NotStreamable as exc:
+            print(f"abkit run: warning: {self.src}: {exc}; loading the whole file (memory grows with the file; "
+                  f"group the rows by --id, ordered by --time within a track, to stream)", file=sys.stderr)
+            reader = _TableReader(self.src, self.fmt, self.chunk, id_col, time_col, reader.given)
+            self._long(reader, id_col, time_col, stream=False)
+
+    def _long(self, reader: "_TableReader", id_col: str, time_col: Optional[str], stream: bool) -> None:
+        """Long tables. ``stream``: chunk by chunk, the track cut by a chunk
+        boundary continued from its state; raises _NotStreamable when the
+        rows are not grouped by id (or a track's times go back). Else the
+        whole file at once, grouped and time-ordered like abkit.frame.filter."""
+        import pyarrow as pa
+
+        from .dask import _state_rows
+        from .frame import group, run_grouped
+
+        out_path = self._tmp()
+        writer = None
+        totals = {"tracks": 0, "rows": 0, "dropped": 0, "restarts": 0}
+        try:
+            prog = Progress(reader.total, reader.unit, self.progress and stream)
+            chunks = iter(reader) if stream else iter([_whole(reader)])
+            finished: set = set()
+            carry: Optional[List[Any]] = None
+            carry_id: Any = None
+            carry_t = -math.inf
+            names: List[List[str]] = []
+            for row0, tab in chunks:
+                cols = reader.columns or []
+                if not names:
+                    names = self._out_names(cols, tab.column_names)
+                idcol = tab.column(id_col)
+                if idcol.null_count:
+                    i = int(np.flatnonzero(idcol.is_null().to_numpy(zero_copy_only=False))[0])
+                    raise DataError(f"{self.src}, row {row0 + i + 1}, column {id_col!r}: missing track id")
+                ids = idcol.to_numpy(zero_copy_only=False)
+                t = None if time_col is None else reader.values(tab, time_col, row0, time=True)
+                zs = [reader.values(tab, c, row0) for c in cols]
+                nrow = len(ids)
+                if stream:
+                    change = ids[1:] != ids[:-1]
+                    starts = np.concatenate([[0], np.flatnonzero(change) + 1])
+                    run_ids = ids[starts].tolist()
+                    cont = carry is not None and run_ids[0] == carry_id
+                    if carry is not None and not cont:
+                        finished.add(carry_id)
+                    fresh = run_ids[1:] if cont else run_ids
+                    if len(set(fresh)) != len(fresh) or any(v in finished for v in fresh):
+                        raise _NotStreamable(f"the rows are not grouped by {id_col!r}")
+                    if t is not None and nrow > 1 and np.any((np.diff(t) < 0) & ~change):
+                        raise _NotStreamable(f"the times of a track go back in the file (column {time_col!r})")
+                    if cont and t is not None and t[0] < carry_t:
+                        raise _NotStreamable(f"the times of a track go back in the file (column {time_col!r})")
+                    codes = np.repeat(np.arange(starts.size), np.diff(np.append(starts, nrow)))
+                    finished.update(run_ids[:-1])
+                else:
+                    codes = pa.compute.dictionary_encode(idcol).combine_chunks().indices.to_numpy(zero_copy_only=False)
+                    cont = False
+                g = group(codes.astype(np.int64), t)
+
+                def where(k: int, smp: int, _g: Any = g, _ids: Any = ids, _row0: int = row0) -> str:
+                    r = _g.row(k, smp)
+                    return f"row {_row0 + r + 1} ({id_col} {_ids[r]!r}), column {time_col!r}"
+
+                first = [carry[c] for c in range(len(cols))] if cont and carry is not None else None
+                try:
+                    res = run_grouped(self.filt, g, zs, t, init=self.init, kw=self.kw, first_state=first, where=where)
+                except ValueError as exc:
+                    raise DataError(f"{self.src}, {exc}") from None
+                nt = g.offsets.size - 1
+                if res:
+                    totals["dropped"] += int(res[0].n_dropped.sum())
+                    totals["restarts"] += int(res[0].n_restarts.sum())
+                totals["tracks"] += nt - (1 if cont else 0)
+                totals["rows"] += nrow
+                out = tab
+                for row, r in zip(names, res):
+                    states = g.put(r.states)
+                    for c, nm in enumerate(row[:-1]):
+                        out = out.append_column(nm, pa.array(states[c]))
+                    assert r.residuals is not None
+                    out = out.append_column(row[-1], pa.array(g.put(r.residuals)))
+                if stream and nrow:
+                    carry = [_state_rows(r.state, nt - 1, nt) for r in res]
+                    carry_id = ids[-1]
+                    carry_t = t[-1] if t is not None else -math.inf
+                writer = writer or _TableWriter(out_path, self.fmt, out.schema)
+                writer.write(out)
+                prog.update(reader.progress())
+            if writer is None:
+                writer = _TableWriter(out_path, self.fmt, reader.empty_schema(self._out_names(reader.columns or [], [])))
+            writer.close()
+            prog.close()
+            os.replace(out_path, self.dst)
+        except BaseException:
+            if writer is not None:
+                writer.close()
+            _remove(out_path)
+            raise
+        if self.progress:
+            print(f"abkit run: {totals['tracks']} tracks, {totals['rows']} rows, {totals['dropped']} dropped as "
+                  f"duplicates, {totals['restarts']} restarts after gaps", file=sys.stderr)
 
     def _out_names(self, columns: Sequence[str], existing: Sequence[str]) -> List[List[str]]:
         names = [[f"{c}_{s}" for s in self.suffixes] + [f"{c}_res"] for c in columns]
@@ -483,6 +655,15 @@ class _Job:
                 writer.close()
             _remove(out_path)
             raise
+
+
+def _whole(reader: "_TableReader") -> Tuple[int, Any]:
+    pa = reader.pa
+    tabs = [tab for _, tab in reader]
+    if not tabs:
+        return 0, pa.table({c: pa.array([], pa.float64()) for c in reader.header}) if reader.fmt == "csv" else \
+            reader._pf.schema_arrow.empty_table()
+    return 0, pa.concat_tables(tabs).combine_chunks()
 
 
 def _remove(path: str) -> None:
