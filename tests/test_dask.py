@@ -284,3 +284,21 @@ def test_filter_frame_track_split_across_partitions_raises(client) -> None:
         adask.filter_frame(ddf, id="id", columns="z", filter=abkit.AlphaBetaFilter(0.5, 0.2, 1.0))
     with pytest.raises(ValueError, match="id: no column 'ship'"):
         adask.filter_frame(ddf, id="ship", columns="x", filter=abkit.AlphaBetaFilter(0.5, 0.2, 1.0))
+
+
+def test_run_with_timestamps_axes_and_gaps(client) -> None:
+    f = abkit.AlphaBetaFilter.from_noise(0.5, 2.0, 1.0)
+    rng = np.random.default_rng(13)
+    t = np.cumsum(rng.uniform(0.2, 3.0, (5, 120)), axis=1)
+    t[2, 40] = t[2, 39]  # a duplicate, dropped
+    z = _z((5, 120, 2), seed=13)
+    kw = dict(axes=2, max_gap=2.5, on_duplicate="drop")
+    want = f.run(z, t=t, return_residuals=True, **kw)
+    assert want.n_restarts.sum() > 0 and want.n_dropped.sum() == 1
+    r = adask.run(f, da.from_array(z, chunks=(2, 25, 1)), t=da.from_array(t, chunks=(5, 60)), return_residuals=True, **kw)
+    assert r.states.shape == want.states.shape
+    res = r.compute()
+    assert _eq(res.states, want.states) and _eq(res.residuals, want.residuals)
+    assert np.array_equal(res.state._packed, want.state._packed, equal_nan=True)
+    with pytest.raises(ValueError, match="t must have the shape"):
+        adask.run(f, da.from_array(z), t=t[:, :10], **kw)
