@@ -408,3 +408,30 @@ def test_npz_timestamps_rectangular(tmp_path, z) -> None:
     with np.load(tmp_path / "o.npz") as o:
         assert _eq(o["velocity"], want.velocity) and _eq(o["residual"], want.residuals)
         assert o["n_dropped"].shape == (5,)
+
+
+def test_progress_bar_on_a_terminal_and_quiet(tmp_path) -> None:
+    import os
+    import select
+
+    df = _long_df(8)
+    df.to_parquet(tmp_path / "l.parquet")
+    master, slave = os.openpty()
+    try:
+        for quiet in (False, True):
+            p = subprocess.Popen([sys.executable, "-m", "abkit", "run", str(tmp_path / "l.parquet"), "-o",
+                                  str(tmp_path / "o.parquet"), *LONG, "--chunk-rows", "50"] + (["-q"] if quiet else []),
+                                 stderr=slave, stdout=subprocess.PIPE)
+            assert p.wait(timeout=120) == 0
+            text = b""
+            while select.select([master], [], [], 0.2)[0]:
+                text += os.read(master, 65536)
+            text = text.decode()
+            if quiet:
+                assert text == ""
+            else:
+                assert "100.0%" in text and "rows" in text
+                assert f"{df['ship'].nunique()} tracks, {len(df)} rows, 0 dropped" in text
+    finally:
+        os.close(master)
+        os.close(slave)

@@ -302,3 +302,19 @@ def test_run_with_timestamps_axes_and_gaps(client) -> None:
     assert np.array_equal(res.state._packed, want.state._packed, equal_nan=True)
     with pytest.raises(ValueError, match="t must have the shape"):
         adask.run(f, da.from_array(z), t=t[:, :10], **kw)
+
+
+def test_missing_dask_gives_install_advice() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.modules['dask'] = None\n"
+            "import numpy as np, abkit\n"
+            "from abkit import dask as adask\n"
+            "try:\n"
+            "    adask.run(abkit.AlphaBetaFilter(0.5, 0.2, 1.0), np.zeros(3))\n"
+            "except ImportError as e:\n"
+            "    print(e)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "install abkit[dask]" in out.stdout
