@@ -119,6 +119,9 @@ def filter_tracks(
     counts: npt.NDArray[np.int64],
     resid: _FArr | None = None,
     threads: int | None = None,
+    smoother: str | None = None,
+    smoother_params: _F64 | None = None,
+    lag: int | None = None,
 ) -> None: ...
 def kalman_gain_sequence(
     n: int, m: int, phi: _F64, h: _F64, q: _F64, r: _F64, p0: _F64, steps: int

@@ -117,6 +117,9 @@ def run_tracks(
     out: Optional[np.ndarray],
     return_residuals: bool,
     threads: Optional[int],
+    smoother: Optional[str] = None,
+    smoother_params: Optional[np.ndarray] = None,
+    lag: Optional[int] = None,
 ) -> "FilterResult":
     """One spatial axis (or none) through the track kernel."""
     from .filters import FilterResult, FilterState
@@ -173,7 +176,7 @@ def run_tracks(
         z3, t2, off, f.n, m, law, np.ascontiguousarray(params, dtype=np.float64).reshape(-1),
         np.ascontiguousarray(f._h[0]).reshape(-1), np.ascontiguousarray(f._hpinv[0]).reshape(-1),
         float(tn[0]), init_mode, gap, drop, packed, out2, counts, res2,
-        None if threads is None else int(threads),
+        None if threads is None else int(threads), smoother, smoother_params, lag,
     )
     residuals = None
     if res2 is not None:

@@ -647,6 +647,11 @@ class FixedGainFilter:
         self,
         z: Any,
         *,
+        t: Any = None,
+        offsets: Any = None,
+        axes: Optional[int] = None,
+        max_gap: Optional[float] = None,
+        on_duplicate: str = "raise",
         lag: Optional[int] = None,
         Q: Any = None,
         R: Any = None,
@@ -675,9 +680,62 @@ class FixedGainFilter:
         smoother_gain : array_like, optional
             The backward gain ``A`` itself, shape ``(n, n)`` or
             ``(n_tracks, n, n)``.
+        t, offsets, axes, max_gap, on_duplicate
+            As for :meth:`run`. With ``t`` the backward step from sample
+            ``k`` to the next kept sample uses the backward gain of the
+            interval between them, ``A(dt) = P_filt Phi(dt)^T P_pred^-1``
+            of the steady-state design at that ``dt`` (``gain_schedule ==
+            "design"``) or, for fixed gains, the constant normalised gain of
+            the Kalman-equivalent model scaled by ``dt``; dropped samples
+            are skipped and the recursion restarts at ``max_gap`` gaps.
+            Implemented for :class:`AlphaBetaFilter`; other filters raise
+            ``NotImplementedError`` with ``t`` (``offsets``/``axes`` without
+            ``t`` work for every filter).
+
+        Raises
+        ------
+        ValueError
+            As for :meth:`run`; ``Q``/``R``/``smoother_gain`` together with
+            ``t`` (the backward gain then follows ``dt``).
+        NotImplementedError
+            ``t`` for a filter other than :class:`AlphaBetaFilter`.
         """
         if lag is not None and (not isinstance(lag, (int, np.integer)) or isinstance(lag, bool) or lag < 0):
             raise ValueError(f"lag must be a non-negative integer or None, got {lag!r}")
+        if t is not None or offsets is not None or axes is not None or max_gap is not None or on_duplicate != "raise":
+            from . import _tracks
+
+            if self._transient is not None:
+                raise ValueError("transient='kalman' does not support t, offsets, axes, max_gap or on_duplicate")
+            if t is not None:
+                if Q is not None or R is not None or smoother_gain is not None:
+                    raise ValueError("with t the backward gain follows dt (the per-dt design); Q, R and smoother_gain apply without t")
+                kind, sparams = self._time_smoother()
+            else:
+                if smoother_gain is not None:
+                    a0 = as_float_array("smoother_gain", smoother_gain)
+                    a0 = a0[None] if a0.ndim == 2 else a0
+                    if a0.ndim != 3 or a0.shape[1:] != (self.n, self.n) or not np.all(np.isfinite(a0)):
+                        raise ValueError(f"smoother_gain must be finite with shape ({self.n}, {self.n}) or (n_tracks, {self.n}, {self.n}), got {np.shape(smoother_gain)}")
+                    if Q is not None or R is not None:
+                        raise ValueError("give smoother_gain or (Q, R), not both")
+                else:
+                    a0 = self.smoother_gain(Q, R)
+                P = max(a0.shape[0], self.n_params)
+                phi = np.broadcast_to(self._phi, (P, self.n, self.n)) if self.n_params in (1, P) else None
+                if phi is None or a0.shape[0] not in (1, P):
+                    raise ValueError(f"smoother_gain has {a0.shape[0]} gains for {self.n_params} parameter sets")
+                aa = np.broadcast_to(a0, (P, self.n, self.n))
+                kind, sparams = "const", np.concatenate([phi.reshape(P, -1), aa.reshape(P, -1)], axis=1)
+            kw = dict(
+                t=t, offsets=offsets, max_gap=max_gap, on_duplicate=on_duplicate, init=init, state=None, out=out,
+                return_residuals=return_residuals, threads=threads,
+                smoother=kind, smoother_params=np.ascontiguousarray(sparams, dtype=np.float64).reshape(-1),
+                lag=None if lag is None else int(lag),
+            )
+            if axes is not None:
+                return _tracks.run_axes(self, z, axes, **kw)  # type: ignore[arg-type]
+            return _tracks.run_tracks(self, z, **kw)  # type: ignore[arg-type]
         if smoother_gain is not None:
             if Q is not None or R is not None:
                 raise ValueError("give smoother_gain or (Q, R), not both")
@@ -690,6 +748,12 @@ class FixedGainFilter:
             a = self.smoother_gain(Q, R)
         a = np.ascontiguousarray(a, dtype=np.float64)
         return self._run(z, init, None, out, return_residuals, threads, a.reshape(-1), lag, a.shape[0])
+
+    def _time_smoother(self) -> Tuple[str, np.ndarray]:
+        raise NotImplementedError(
+            f"{type(self).__name__}.smooth(t=...) is not implemented (the per-dt backward gain is available "
+            "for AlphaBetaFilter); use run(t=...) for filtering, or smooth() on regularly sampled data"
+        )
 
     def tracker(self, n_tracks: int = 1, init: Any = "two-point") -> "Tracker":
         """A :class:`Tracker` that holds this filter's state between chunks."""
@@ -877,6 +941,23 @@ class AlphaBetaFilter(FixedGainFilter):
         p = nn @ d.covariance_filtered @ nn
         m = nn @ d.covariance_predicted @ nn
         return p @ np.transpose(self._phi, (0, 2, 1)) @ np.linalg.inv(m)
+
+    def _time_smoother(self) -> Tuple[str, np.ndarray]:
+        law = self._tv_law
+        assert law is not None
+        P = self.n_params
+        rows = np.zeros((P, 5))
+        if law[0] == "ab-design":
+            rows[:, 1] = np.broadcast_to(law[1][:, 0], (P,))
+        else:
+            a = self._default_smoother_gain()  # physical, at T
+            t = self._t
+            rows[:, 0] = 1.0
+            rows[:, 1] = a[:, 0, 0]
+            rows[:, 2] = a[:, 0, 1] / t
+            rows[:, 3] = a[:, 1, 0] * t
+            rows[:, 4] = a[:, 1, 1]
+        return "ab", rows
 
     def covariances(self, Q: Any = None, R: Any = None, *, sigma_w: Optional[float] = None, sigma_v: Optional[float] = None) -> "SteadyStateCovariance":
         """Theoretical steady-state covariances (see :meth:`FixedGainFilter.covariances`).

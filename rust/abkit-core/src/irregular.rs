@@ -128,6 +128,50 @@ impl GainLaw<2, 1> for AbDesign {
     }
 }
 
+/// Backward (RTS) gain of the steady-state alpha-beta smoother at step `dt`:
+/// `A = P_filt Phi^T P_pred^-1` of the design at that step, in physical
+/// units `A = D A_N D^-1`, `D = diag(1, 1/dt)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AbBackward {
+    /// The Kalman design at each `dt` (`ratio = sigma_w / sigma_v`):
+    /// `A_N = P_N Phi_N^T M_N^-1` with the normalised filtered covariance
+    /// `P_N = [[alpha, beta], [beta, c]]`, `c = 4 v^3 / u` (paper 000; see
+    /// [`crate::alphabeta`]) and the predicted one from `P = (I - K H) M`:
+    /// `M_N = [[alpha, beta], [beta, c u^2 + beta^2]] / u^2`.
+    Design(f64),
+    /// Fixed gains: a constant normalised backward gain `A_N`.
+    Fixed([[f64; 2]; 2]),
+}
+
+impl AbBackward {
+    /// `(Phi(dt), A(dt))`.
+    pub fn at(&self, dt: f64) -> ([[f64; 2]; 2], [[f64; 2]; 2]) {
+        let an = match *self {
+            AbBackward::Fixed(a) => a,
+            AbBackward::Design(ratio) => {
+                let lambda = ratio * dt * dt;
+                let (u, v) = kalman_uv_from_lambda(lambda);
+                let (al, be) = (kalman_alpha(u, v), 2.0 * v * v);
+                let c = 4.0 * v * v * v / u;
+                let u2 = u * u;
+                // P = [[al, be], [be, c]], M = [[al, be], [be, c u^2 + be^2]] / u^2;
+                // A_N = P Phi_N^T M^-1 with Phi_N^T = [[1, 0], [1, 1]].
+                let pp = [[al + be, be], [be + c, c]];
+                let (m11, m12, m22) = (al / u2, be / u2, c + be * be / u2);
+                let det = m11 * m22 - m12 * m12;
+                let mi = [[m22 / det, -m12 / det], [-m12 / det, m11 / det]];
+                std::array::from_fn(|i| {
+                    std::array::from_fn(|j| pp[i][0] * mi[0][j] + pp[i][1] * mi[1][j])
+                })
+            }
+        };
+        (
+            phi_cv(dt),
+            [[an[0][0], an[0][1] * dt], [an[1][0] / dt, an[1][1]]],
+        )
+    }
+}
+
 /// Alpha-beta-gamma gains kept fixed: `K = [alpha, beta/dt, c gamma/dt^2]`
 /// (`c` of the convention: 1/2 standard, 1 Chen & Chui, 2 g-h-k).
 #[derive(Debug, Clone, Copy, PartialEq)]

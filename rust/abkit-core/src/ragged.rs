@@ -196,6 +196,81 @@ impl<T, const N: usize> PostTrack<T, N> for NoPost {
     }
 }
 
+/// Steady-state smoothing with constant backward gains (no timestamps):
+/// [`crate::smooth::smooth_track`] with `phi[p]`, `a[p]` of the track's
+/// parameter set `p`.
+#[derive(Debug, Clone)]
+pub struct ConstSmooth<'a, const N: usize> {
+    /// Transitions, 1 or one per track.
+    pub phi: &'a [[[f64; N]; N]],
+    /// Backward gains, 1 or one per track.
+    pub a: &'a [[[f64; N]; N]],
+    /// Fixed lag, or `None` for fixed interval.
+    pub lag: Option<usize>,
+}
+
+impl<T: IoFloat, const N: usize> PostTrack<T, N> for ConstSmooth<'_, N> {
+    fn post(
+        &self,
+        track: usize,
+        states: &mut [&mut [T]; N],
+        _: Option<&dyn Fn(usize) -> f64>,
+        _: Option<f64>,
+    ) -> Result<()> {
+        let p = |len: usize| if len == 1 { 0 } else { track };
+        let (Some(phi), Some(a)) = (self.phi.get(p(self.phi.len())), self.a.get(p(self.a.len())))
+        else {
+            return Err(Error::Shape(
+                "smoother gains do not match the tracks".into(),
+            ));
+        };
+        crate::smooth::smooth_track(phi, a, self.lag, states);
+        Ok(())
+    }
+}
+
+/// Alpha-beta smoothing: constant gains without timestamps, the per-dt
+/// backward gain of [`AbBackward`] with them.
+#[derive(Debug, Clone)]
+pub struct AbSmooth<'a> {
+    /// Backward gains, 1 or one per track.
+    pub back: &'a [crate::irregular::AbBackward],
+    /// Nominal period (steps without timestamps).
+    pub t_nominal: f64,
+    /// Fixed lag, or `None` for fixed interval.
+    pub lag: Option<usize>,
+}
+
+impl<T: IoFloat> PostTrack<T, 2> for AbSmooth<'_> {
+    fn post(
+        &self,
+        track: usize,
+        states: &mut [&mut [T]; 2],
+        t: Option<&dyn Fn(usize) -> f64>,
+        max_gap: Option<f64>,
+    ) -> Result<()> {
+        let Some(b) = self.back.get(if self.back.len() == 1 { 0 } else { track }) else {
+            return Err(Error::Shape(
+                "smoother gains do not match the tracks".into(),
+            ));
+        };
+        match t {
+            None => {
+                let (phi, a) = b.at(self.t_nominal);
+                crate::smooth::smooth_track(&phi, &a, self.lag, states);
+                Ok(())
+            }
+            Some(t) => crate::smooth::smooth_track_tv(
+                t,
+                max_gap.unwrap_or(f64::INFINITY),
+                self.lag,
+                states,
+                &mut |dt| Ok(b.at(dt)),
+            ),
+        }
+    }
+}
+
 /// Check offsets: `n_tracks + 1` entries, starting at 0, non-decreasing,
 /// ending at `n_total`; and (for rows of a rectangular array) no track
 /// crossing a row. Returns them as `usize`.

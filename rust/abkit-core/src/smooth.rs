@@ -108,6 +108,81 @@ pub fn smooth_track<T: IoFloat, const N: usize>(
     }
 }
 
+/// Smooth one track with timestamps in place: the backward step from
+/// sample `k` to the next kept sample `j` (the next one whose estimate has
+/// no NaN) uses `gain(t_j - t_k) = (Phi, A)` for that interval. Samples with
+/// a NaN component (dropped duplicates, start-up) are left as they are and
+/// skipped; the recursion restarts where the interval exceeds `max_gap` (a
+/// filter restart). `lag`: as in [`smooth_track`], counted in samples.
+pub fn smooth_track_tv<T: IoFloat, const N: usize>(
+    t: &dyn Fn(usize) -> f64,
+    max_gap: f64,
+    lag: Option<usize>,
+    states: &mut [&mut [T]; N],
+    gain: &mut dyn FnMut(f64) -> crate::Result<([[f64; N]; N], [[f64; N]; N])>,
+) -> crate::Result<()> {
+    let n = states.first().map_or(0, |s| s.len());
+    match lag {
+        None => {
+            let mut next: Option<([f64; N], f64)> = None;
+            for k in (0..n).rev() {
+                let xf = load(states, k);
+                if has_nan(&xf) {
+                    continue;
+                }
+                let tk = t(k);
+                let xs = match next {
+                    Some((xn, tn)) if tn - tk <= max_gap => {
+                        let (phi, a) = gain(tn - tk)?;
+                        step(&phi, &a, &xf, &xn)
+                    }
+                    _ => xf,
+                };
+                for c in 0..N {
+                    states[c][k] = T::from_f64(xs[c]);
+                }
+                next = Some((xs, tk));
+            }
+        }
+        Some(lag) => {
+            // Increasing k: x_f[k..] is still intact when x_s[k] is written.
+            let mut chain: Vec<usize> = Vec::with_capacity(lag + 1);
+            for k in 0..n {
+                let xf_k = load(states, k);
+                if has_nan(&xf_k) {
+                    continue;
+                }
+                chain.clear();
+                chain.push(k);
+                let end = (k + lag).min(n - 1);
+                let mut last_t = t(k);
+                for j in k + 1..=end {
+                    if has_nan(&load(states, j)) {
+                        continue;
+                    }
+                    let tj = t(j);
+                    if tj - last_t > max_gap {
+                        break;
+                    }
+                    chain.push(j);
+                    last_t = tj;
+                }
+                let Some(&jl) = chain.last() else { continue };
+                let mut s = load(states, jl);
+                for w in chain.windows(2).rev() {
+                    let (i, j) = (w[0], w[1]);
+                    let (phi, a) = gain(t(j) - t(i))?;
+                    s = step(&phi, &a, &load(states, i), &s);
+                }
+                for c in 0..N {
+                    states[c][k] = T::from_f64(s[c]);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 #[path = "tests/smooth.rs"]
 mod tests;

@@ -9,10 +9,13 @@
 use crate::convert::{guard, to_pyerr};
 use crate::filter::{parse_init, with_threads};
 use abkit_core::filter::{states_from_f64, IoFloat};
+use abkit_core::irregular::AbBackward;
 use abkit_core::irregular::{
     AbDesign, AbFixed, AbgDesign, AbgFixed, Constant, GainLaw, SingerDesign, Step,
 };
-use abkit_core::ragged::{filter_tracks, Counts, NoPost, Options, Samples, TrackFilter};
+use abkit_core::ragged::{
+    filter_tracks, AbSmooth, ConstSmooth, Counts, NoPost, Options, PostTrack, Samples, TrackFilter,
+};
 use numpy::ndarray::{ArrayView2, ArrayView3};
 use numpy::{Element, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -134,7 +137,14 @@ struct Io<'py, T: Element> {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn run_typed<'py, T: IoFloat + Element, L: GainLaw<N, M>, const N: usize, const M: usize>(
+fn run_typed<
+    'py,
+    T: IoFloat + Element,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+>(
     py: Python<'py>,
     io: Io<'py, T>,
     t: Option<&PyReadonlyArray2<'py, f64>>,
@@ -146,6 +156,7 @@ fn run_typed<'py, T: IoFloat + Element, L: GainLaw<N, M>, const N: usize, const 
     state: &Bound<'py, PyArray2<f64>>,
     counts: &Bound<'py, PyArray2<i64>>,
     threads: Option<usize>,
+    post: &P,
 ) -> PyResult<()> {
     if h.len() != N * M || h_pinv.len() != N * M {
         return Err(PyValueError::new_err("H has the wrong size"));
@@ -193,7 +204,7 @@ fn run_typed<'py, T: IoFloat + Element, L: GainLaw<N, M>, const N: usize, const 
                     resid,
                     cts,
                     par,
-                    &NoPost,
+                    post,
                 )
             })
         })
@@ -224,7 +235,7 @@ fn constant_laws<const N: usize, const M: usize>(p: &[f64]) -> PyResult<Vec<Cons
 /// `out` `(n, N)`, `resid` `(N, m)`, `state` `(n_tracks, STATE_WIDTH)`,
 /// `counts` int64 `(n_tracks, 2)`.
 #[pyfunction]
-#[pyo3(name = "filter_tracks", signature = (z, t, offsets, n, m, law, params, h, h_pinv, t_nominal, init, max_gap, drop_duplicates, state, out, counts, resid=None, threads=None))]
+#[pyo3(name = "filter_tracks", signature = (z, t, offsets, n, m, law, params, h, h_pinv, t_nominal, init, max_gap, drop_duplicates, state, out, counts, resid=None, threads=None, smoother=None, smoother_params=None, lag=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter_tracks_py<'py>(
     py: Python<'py>,
@@ -246,7 +257,14 @@ pub(crate) fn filter_tracks_py<'py>(
     counts: Bound<'py, PyArray2<i64>>,
     resid: Option<&Bound<'py, PyAny>>,
     threads: Option<usize>,
+    smoother: Option<&str>,
+    smoother_params: Option<PyReadonlyArray1<'py, f64>>,
+    lag: Option<usize>,
 ) -> PyResult<()> {
+    let sp: &[f64] = match &smoother_params {
+        Some(a) => a.as_slice()?,
+        None => &[],
+    };
     let opts = Options {
         init: parse_init(init)?,
         t_nominal,
@@ -267,6 +285,36 @@ pub(crate) fn filter_tracks_py<'py>(
     };
     macro_rules! typed {
         ($laws:expr, $n:literal, $m:literal) => {{
+            match smoother {
+                None => typed!($laws, $n, $m, &NoPost),
+                Some("const") => {
+                    let w = $n * $n;
+                    if sp.is_empty() || sp.len() % (2 * w) != 0 {
+                        return Err(PyValueError::new_err("smoother gains have the wrong size"));
+                    }
+                    let rows = || sp.chunks_exact(2 * w);
+                    let mat = |c: &[f64]| -> [[f64; $n]; $n] {
+                        std::array::from_fn(|i| std::array::from_fn(|j| c[i * $n + j]))
+                    };
+                    let phi: Vec<[[f64; $n]; $n]> = rows().map(|r| mat(&r[..w])).collect();
+                    let a: Vec<[[f64; $n]; $n]> = rows().map(|r| mat(&r[w..])).collect();
+                    typed!(
+                        $laws,
+                        $n,
+                        $m,
+                        &ConstSmooth {
+                            phi: &phi,
+                            a: &a,
+                            lag
+                        }
+                    )
+                }
+                Some(other) => Err(PyValueError::new_err(format!(
+                    "smoother {other:?} does not apply to this filter"
+                ))),
+            }
+        }};
+        ($laws:expr, $n:literal, $m:literal, $post:expr) => {{
             if is64 {
                 let io = Io::<f64> {
                     z: z.cast::<PyArray3<f64>>()?.clone(),
@@ -275,7 +323,7 @@ pub(crate) fn filter_tracks_py<'py>(
                         .map(|r| r.cast::<PyArray2<f64>>().cloned())
                         .transpose()?,
                 };
-                run_typed::<f64, _, $n, $m>(
+                run_typed::<f64, _, _, $n, $m>(
                     py,
                     io,
                     t.as_ref(),
@@ -287,6 +335,7 @@ pub(crate) fn filter_tracks_py<'py>(
                     &state,
                     &counts,
                     threads,
+                    $post,
                 )
             } else {
                 let io = Io::<f32> {
@@ -296,7 +345,7 @@ pub(crate) fn filter_tracks_py<'py>(
                         .map(|r| r.cast::<PyArray2<f32>>().cloned())
                         .transpose()?,
                 };
-                run_typed::<f32, _, $n, $m>(
+                run_typed::<f32, _, _, $n, $m>(
                     py,
                     io,
                     t.as_ref(),
@@ -308,6 +357,7 @@ pub(crate) fn filter_tracks_py<'py>(
                     &state,
                     &counts,
                     threads,
+                    $post,
                 )
             }
         }};
@@ -319,7 +369,43 @@ pub(crate) fn filter_tracks_py<'py>(
             Err(PyValueError::new_err("gain law does not match n, m"))
         }
     };
+    // Alpha-beta smoother: rows (kind, p1..p4): kind 0 = per-dt design
+    // (p1 = sigma_w / sigma_v), 1 = fixed normalised gain A_N (p1..p4).
+    let ab_back = || -> PyResult<Vec<AbBackward>> {
+        if sp.is_empty() || sp.len() % 5 != 0 {
+            return Err(PyValueError::new_err(
+                "alpha-beta smoother parameters have the wrong size",
+            ));
+        }
+        Ok(sp
+            .chunks_exact(5)
+            .map(|r| {
+                if r[0] == 0.0 {
+                    AbBackward::Design(r[1])
+                } else {
+                    AbBackward::Fixed([[r[1], r[2]], [r[3], r[4]]])
+                }
+            })
+            .collect())
+    };
+    fn ab_post(back: &[AbBackward], t_nominal: f64, lag: Option<usize>) -> AbSmooth<'_> {
+        AbSmooth {
+            back,
+            t_nominal,
+            lag,
+        }
+    }
     match &law {
+        Law::AbFixed(l) if smoother == Some("ab") => {
+            kin(2)?;
+            let b = ab_back()?;
+            typed!(l, 2, 1, &ab_post(&b, t_nominal, lag))
+        }
+        Law::AbDesign(l) if smoother == Some("ab") => {
+            kin(2)?;
+            let b = ab_back()?;
+            typed!(l, 2, 1, &ab_post(&b, t_nominal, lag))
+        }
         Law::AbFixed(l) => {
             kin(2)?;
             typed!(l, 2, 1)

@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""Benchmark of the real-world tracks kernels (issue 6, "Performance").
+
+Ratios measured in one run, on the same machine, same total samples:
+
+* irregular vs fixed-T: ``AlphaBetaFilter.from_noise(...).run(z, t=t)``
+  (per-dt closed-form design at every step) vs ``.run(z)`` (the fixed-T
+  rectangular kernel), 1,000 x 10,000 samples; also the fixed-gain
+  schedule (``AlphaBetaFilter(alpha, beta, T).run(z, t=t)``) and the track
+  kernel without timestamps on the same rectangle (``offsets=``).
+  Target: irregular >= 0.5 of fixed-T.
+* ragged vs rectangular: 10^7 samples as tracks of mixed lengths 10..10,000
+  (log-uniform) in one flat array with ``offsets`` vs the rectangular
+  fixed-T kernel on the same number of samples. Target: >= 0.8.
+
+Throughput is samples per second, best of ``--repeat`` runs, outputs
+preallocated (``out=``), float64, threads = rayon's pool (``--threads 1``
+for one thread). Usage::
+
+    python bench/bench_tracks.py            # full sizes (~1 min)
+    python bench/bench_tracks.py --quick    # 1/10 of the sizes
+
+Prints a markdown table (the one in docs/benchmarks.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+from typing import Callable, List, Tuple
+
+import numpy as np
+
+import abkit
+from abkit import AlphaBetaFilter
+
+
+def best(fn: Callable[[], object], repeat: int) -> float:
+    fn()  # warm-up
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t0)
+    return min(ts)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--threads", type=int, default=None)
+    a = ap.parse_args()
+    scale = 10 if a.quick else 1
+    rng = np.random.default_rng(0)
+    th = a.threads
+
+    n_tracks, n_samples = 1000 // scale, 10_000
+    N = n_tracks * n_samples
+    t = np.cumsum(rng.exponential(0.1, (n_tracks, n_samples)), axis=1)
+    z = np.cumsum(rng.normal(0, 1, (n_tracks, n_samples)), axis=1) + rng.normal(0, 1, (n_tracks, n_samples))
+    design = AlphaBetaFilter.from_noise(3.2, 32.0, 0.1)
+    fixed = AlphaBetaFilter(design.alpha, design.beta, 0.1)
+    out = np.empty((2, n_tracks, n_samples))
+    off_rect = np.arange(n_tracks + 1, dtype=np.int64) * n_samples
+    rows: List[Tuple[str, float]] = []
+    t_fixed = best(lambda: design.run(z, out=out, threads=th), a.repeat)
+    rows.append(("fixed-T kernel, rectangular (run(z))", t_fixed))
+    t_irr = best(lambda: design.run(z, t=t, out=out, threads=th), a.repeat)
+    rows.append(("irregular t, design schedule (run(z, t=t))", t_irr))
+    t_irr_fixed = best(lambda: fixed.run(z, t=t, out=out, threads=th), a.repeat)
+    rows.append(("irregular t, fixed-gain schedule", t_irr_fixed))
+    out_flat = np.empty((2, N))
+    t_trk = best(lambda: design.run(z.reshape(-1), offsets=off_rect, out=out_flat, threads=th), a.repeat)
+    rows.append(("track kernel without t (offsets = i*n_samples)", t_trk))
+
+    # ragged: lengths log-uniform in [10, 10000] up to 10^7 samples
+    total = 10_000_000 // scale
+    lens = []
+    s = 0
+    while s < total:
+        L = int(round(10 ** rng.uniform(1, 4)))
+        L = min(L, total - s)
+        lens.append(L)
+        s += L
+    off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    zr = np.cumsum(rng.normal(0, 1, total)) + rng.normal(0, 1, total)
+    tr = np.cumsum(rng.exponential(0.1, total))  # increasing overall, so per track too
+    # rectangular reference with the same number of samples
+    rect_tracks = 1000 // scale
+    zq = zr.reshape(rect_tracks, -1)
+    out_q = np.empty((2,) + zq.shape)
+    out_r = np.empty((2, total))
+    t_rect = best(lambda: design.run(zq, out=out_q, threads=th), a.repeat)
+    t_rag = best(lambda: design.run(zr, offsets=off, out=out_r, threads=th), a.repeat)
+    tq = tr.reshape(zq.shape)
+    t_rect_t = best(lambda: design.run(zq, t=tq, out=out_q, threads=th), a.repeat)
+    t_rag_t = best(lambda: design.run(zr, t=tr, offsets=off, out=out_r, threads=th), a.repeat)
+
+    print(f"abkit {abkit.__version__}, {platform.machine()}, numpy {np.__version__}, threads={th or 'pool'}, best of {a.repeat}")
+    print()
+    print(f"| Irregular timestamps ({n_tracks:,} x {n_samples:,}) | Msamples/s | vs fixed-T |")
+    print("|---|---:|---:|")
+    for name, tt in rows:
+        print(f"| {name} | {N / tt / 1e6:.0f} | {t_fixed / tt:.2f} |")
+    print()
+    print(f"| Ragged ({len(lens):,} tracks, lengths 10..10,000, {total:,} samples) | Msamples/s | ratio |")
+    print("|---|---:|---:|")
+    print(f"| rectangular fixed-T kernel ({rect_tracks:,} x {total // rect_tracks:,}) | {total / t_rect / 1e6:.0f} | 1.00 |")
+    print(f"| ragged, no t (offsets) | {total / t_rag / 1e6:.0f} | {t_rect / t_rag:.2f} |")
+    print(f"| rectangular with t | {total / t_rect_t / 1e6:.0f} | 1.00 (t) |")
+    print(f"| ragged with t | {total / t_rag_t / 1e6:.0f} | {t_rect_t / t_rag_t:.2f} (vs rectangular with t) |")
+
+
+if __name__ == "__main__":
+    main()
