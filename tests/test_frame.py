@@ -311,3 +311,23 @@ def test_doctests() -> None:
 
     res = doctest.testmod(frame, optionflags=doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS)
     assert res.failed == 0 and res.attempted > 0
+
+
+@pytest.mark.parametrize("k", [1, 3, 300, 70_000, 5_000_000])
+def test_group_order_equals_stable_lexsort(k) -> None:
+    # the radix grouping (with or without the time sort) against numpy's stable lexsort
+    rng = np.random.default_rng(k)
+    n = 200_000
+    codes = rng.integers(0, k, n)
+    t_feed = np.sort(rng.uniform(0, 100, n))  # a time-ordered feed, tracks interleaved
+    t_rand = np.round(rng.uniform(0, 100, n), 1)  # ties included
+    for t in (t_feed, t_rand, None):
+        g = frame.group(codes, t)
+        want = np.lexsort((t, codes)) if t is not None else np.argsort(codes, kind="stable")
+        if g.order is None:
+            assert np.array_equal(want, np.arange(n))
+        else:
+            assert np.array_equal(g.order, want)
+        cs = codes[want]
+        starts = np.flatnonzero(np.diff(cs)) + 1
+        assert g.offsets.tolist() == [0] + starts.tolist() + [n]

@@ -83,7 +83,11 @@ class Grouping:
         if self.order is None:
             return a
         out = np.empty_like(a)
-        out[..., self.order] = a
+        if a.ndim == 1:
+            out[self.order] = a
+        else:
+            for k in range(a.shape[0]):  # one 1-D scatter per row is much faster than a 2-D one
+                out[k][self.order] = a[k]
         return out
 
     def row(self, track: int, sample: int) -> int:
@@ -91,28 +95,49 @@ class Grouping:
         return i if self.order is None else int(self.order[i])
 
 
+def _stable_order(codes: np.ndarray, k: int) -> np.ndarray:
+    """Stable argsort of integer codes in ``[0, k)``: LSD radix passes over
+    16-bit digits (numpy's stable sort is a radix sort for 16-bit integers),
+    linear in the number of rows."""
+    if k <= 1:
+        return np.arange(codes.size)
+    order = np.argsort((codes & 0xFFFF).astype(np.uint16), kind="stable")
+    shift = 16
+    while (k - 1) >> shift:
+        digit = ((codes[order] >> shift) & 0xFFFF).astype(np.uint16)
+        order = order[np.argsort(digit, kind="stable")]
+        shift += 16
+    return order
+
+
 def group(codes: np.ndarray, t: Optional[np.ndarray]) -> Grouping:
-    """Group rows by integer track ``codes`` (any injective coding of the
-    ids) and order them by ``t`` within a track (stable: ties keep the row
-    order). No permutation when the rows are already grouped and ordered."""
+    """Group rows by non-negative integer track ``codes`` (any injective
+    coding of the ids) and order them by ``t`` within a track (stable: ties
+    keep the row order). No permutation when the rows are already grouped
+    and ordered; a linear-time radix sort when only the grouping is
+    missing (e.g. a feed ordered by time, tracks interleaved)."""
     n = int(codes.size)
     if n == 0:
         return Grouping(None, np.zeros(1, dtype=np.int64), 0)
+    codes = codes.astype(np.int64, copy=False)
+    k = int(codes.max()) + 1
     change = codes[1:] != codes[:-1]
     n_runs = 1 + int(np.count_nonzero(change))
-    n_ids = int(np.unique(codes).size) if n_runs > 1 else 1
+    n_ids = int(np.count_nonzero(np.bincount(codes, minlength=k))) if n_runs > 1 else 1
     ok = n_runs == n_ids
     if ok and t is not None and n > 1:
-        back = np.diff(t) < 0
-        ok = not bool(np.any(back & ~change))
+        ok = not bool(np.any((np.diff(t) < 0) & ~change))
     if ok:
-        starts = np.flatnonzero(change) + 1
-        order = None
-    else:
-        order = np.lexsort((t, codes)) if t is not None else np.argsort(codes, kind="stable")
+        return Grouping(None, np.concatenate([[0], np.flatnonzero(change) + 1, [n]]).astype(np.int64), n)
+    order = _stable_order(codes, k)
+    cs = codes[order]
+    same = cs[1:] == cs[:-1]
+    if t is not None and np.any((np.diff(t[order]) < 0) & same):
+        by_t = np.argsort(t, kind="stable")
+        order = by_t[_stable_order(codes[by_t], k)]
         cs = codes[order]
-        starts = np.flatnonzero(cs[1:] != cs[:-1]) + 1
-    offsets = np.concatenate([[0], starts, [n]]).astype(np.int64)
+        same = cs[1:] == cs[:-1]
+    offsets = np.concatenate([[0], np.flatnonzero(~same) + 1, [n]]).astype(np.int64)
     return Grouping(order, offsets, n)
 
 
@@ -200,7 +225,7 @@ def _codes(df: Any, lib: str, id: str) -> np.ndarray:
     s = df.get_column(id)
     if s.null_count():
         raise ValueError(f"id column {id!r}: missing id at row {int(s.is_null().arg_max())}")
-    return s.rank("dense").to_numpy().astype(np.int64)
+    return s.rank("dense").to_numpy().astype(np.int64) - 1
 
 
 def _float_values(df: Any, lib: str, name: str) -> np.ndarray:
@@ -454,7 +479,13 @@ def filter(
     summary = FrameSummary(ids, np.diff(g.offsets), np.asarray(dropped, dtype=np.int64),
                            np.asarray(restarts, dtype=np.int64), g.order is not None)
     if lib == "pandas":
-        out = df.assign(**new)
+        import pandas as pd
+
+        # the estimate arrays are ours: hand them to pandas without a copy
+        est = pd.DataFrame(new, index=df.index, copy=False)
+        # (pandas >= 3 copies lazily and deprecates concat's copy=; older pandas needs copy=False)
+        ckw = {} if int(pd.__version__.split(".")[0]) >= 3 else {"copy": False}
+        out = pd.concat([df, est], axis=1, **ckw) if len(df.columns) else est
         out.attrs = dict(df.attrs)
         out.attrs["abkit"] = summary.totals()
     else:
