@@ -29,6 +29,20 @@ def ab_fixed_law(a, b):
     return lambda dt: (cv_phi(dt), np.array([a, b / dt]))
 
 
+def assert_close(actual, desired, rtol=1e-10):
+    """Per component: |a - d| <= rtol (|d| + 1e-2 max|d|). The kernel's
+    update is arranged for a short dependency chain ((1 - alpha) x_p +
+    alpha z, fused multiply-adds), so it rounds differently from the
+    reference; a large position enters the velocity's rounding."""
+    actual, desired = np.asarray(actual, float), np.asarray(desired, float)
+    assert actual.shape == desired.shape
+    np.testing.assert_array_equal(np.isnan(actual), np.isnan(desired))
+    for a, d in zip(actual.reshape(actual.shape[0], -1), desired.reshape(desired.shape[0], -1)):
+        ok = ~np.isnan(d)
+        scale = np.max(np.abs(d[ok])) if ok.any() else 0.0
+        np.testing.assert_array_less(np.abs(a[ok] - d[ok]), rtol * (np.abs(d[ok]) + 1e-2 * scale) + 1e-300)
+
+
 def random_times(rng, n, lo=-4, hi=3):
     dt = 10.0 ** rng.uniform(lo, hi, n)
     return np.cumsum(dt) - dt[0] + rng.uniform(-100, 100)
@@ -50,8 +64,8 @@ def test_ab_design_matches_reference_at_random_dt(init, seed):
     assert f.gain_schedule == "design"
     r = f.run(z, t=t, init=init, return_residuals=True)
     ref, res, _, _ = run_track(z, t, ab_design_law(), 2, init=init)
-    np.testing.assert_allclose(r.states, ref, rtol=1e-12, atol=0, equal_nan=True)
-    np.testing.assert_allclose(r.residuals, res, rtol=1e-9, atol=1e-9, equal_nan=True)
+    assert_close(r.states, ref)
+    assert_close(r.residuals[None], res[None], rtol=1e-8)
     assert r.t is not None and np.array_equal(r.t, t)
 
 
@@ -63,7 +77,7 @@ def test_ab_fixed_gains_scale_rate_gain_with_dt():
     assert f.gain_schedule == "fixed"
     r = f.run(z, t=t)
     ref, _, _, _ = run_track(z, t, ab_fixed_law(0.5, 0.3), 2)
-    np.testing.assert_allclose(r.states, ref, rtol=1e-12, equal_nan=True)
+    assert_close(r.states, ref)
 
 
 def test_from_design_of_kalman_design_uses_design_schedule():
@@ -77,7 +91,7 @@ def test_from_design_of_kalman_design_uses_design_schedule():
     z = noisy(rng, t)
     r = f.run(z, t=t)
     ref, _, _, _ = run_track(z, t, ab_design_law(ratio, 1.0), 2)
-    np.testing.assert_allclose(r.states, ref, rtol=1e-11, equal_nan=True)
+    assert_close(r.states, ref)
     assert AlphaBetaFilter.from_design(alphabeta.analyze(0.5, 0.1), T=1.0).gain_schedule == "fixed"
 
 
@@ -187,8 +201,8 @@ def test_duplicates_dropped_match_reference(seed):
     r = f.run(z, t=t, on_duplicate="drop", return_residuals=True)
     ref, res, nd, _ = run_track(z, t, ab_design_law(), 2, drop=True)
     assert nd > 0 and int(r.n_dropped[0]) == nd
-    np.testing.assert_allclose(r.states, ref, rtol=1e-12, equal_nan=True)
-    np.testing.assert_allclose(r.residuals, res, rtol=1e-9, atol=1e-9, equal_nan=True)
+    assert_close(r.states, ref)
+    assert_close(r.residuals[None], res[None], rtol=1e-8)
 
 
 @pytest.mark.parametrize("init", ["two-point", "first"])
@@ -202,7 +216,7 @@ def test_max_gap_restarts_match_reference(init):
     r = f.run(z, t=t, max_gap=10.0, init=init)
     ref, _, _, nr = run_track(z, t, ab_design_law(), 2, max_gap=10.0, init=init)
     assert nr > 0 and int(r.n_restarts[0]) == nr
-    np.testing.assert_allclose(r.states, ref, rtol=1e-12, equal_nan=True)
+    assert_close(r.states, ref)
 
 
 def test_nan_and_bad_timestamps():

@@ -156,6 +156,9 @@ def run_tracks(
         t2 = t_arr.reshape(z3.shape[:2]) if t_arr.ndim == 1 else t_arr
         t2 = _aligned(t2)
         law, params = f._time_law()
+    elif f._tv_law is not None and f._tv_law[0] in ("ab-fixed", "ab-design"):
+        # the filter's own gains at T (the alpha-beta fast path of the kernel)
+        law, params = "ab-fixed", f._params[:, :2]  # type: ignore[attr-defined]
     else:
         law = "constant"
         params = np.concatenate([f._phi.reshape(f.n_params, -1), f._k.reshape(f.n_params, -1)], axis=1)

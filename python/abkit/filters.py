@@ -1116,7 +1116,7 @@ class Tracker:
             z = z.astype(np.float64)
         res = self.filter.run(z, init=self.init, state=self.state, **kw)
         self.state = res.state
-        self.samples += res.states.shape[-1]
+        self.samples += res.states.shape[-1] if res.state.axes is None else res.states.shape[-2]
         return res
 
     def reset(self) -> None:

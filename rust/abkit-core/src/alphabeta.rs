@@ -140,6 +140,7 @@ fn check_pos(name: &'static str, x: f64) -> Result<f64> {
 /// `u = 4 / (lambda + 4 + S)`, `v = (lambda + S) / (lambda + 4 + S)` with
 /// `S = sqrt(lambda (lambda + 8))`; for `lambda >= 1` the same is evaluated as
 /// `w = (4/lambda) / (1 + sqrt(1 + 8/lambda))`, `u = w / (1 + w)`, `v = 1 / (1 + w)`.
+#[inline]
 pub fn kalman_uv_from_lambda(lambda: f64) -> (f64, f64) {
     if lambda >= 1.0 {
         let w = (4.0 / lambda) / (1.0 + (1.0 + 8.0 / lambda).sqrt());
@@ -153,6 +154,7 @@ pub fn kalman_uv_from_lambda(lambda: f64) -> (f64, f64) {
 
 /// `alpha = 1 - u^2 = v (1 + u)`, evaluated in the form that rounds correctly
 /// (never above 1).
+#[inline]
 pub fn kalman_alpha(u: f64, v: f64) -> f64 {
     if u < 0.5 {
         1.0 - u * u

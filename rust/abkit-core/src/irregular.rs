@@ -51,6 +51,14 @@ pub struct Step<const N: usize, const M: usize> {
 pub trait GainLaw<const N: usize, const M: usize>: Clone + Send + Sync {
     /// The step model for the interval `dt` (finite and > 0).
     fn step(&mut self, dt: f64) -> Result<Step<N, M>>;
+
+    /// Alpha-beta laws (`N = 2`, `M = 1`, `Phi = [[1, dt], [0, 1]]`,
+    /// `H = [1, 0]`): the gains `(alpha, beta / dt)` of [`GainLaw::step`],
+    /// for the kernels' fast path. `None` for every other law.
+    #[inline(always)]
+    fn ab_gains(&mut self, _dt: f64) -> Option<(f64, f64)> {
+        None
+    }
 }
 
 /// A constant step model (the regular-sampling filter; `dt` ignored).
@@ -93,6 +101,11 @@ impl GainLaw<2, 1> for AbFixed {
             k: [[self.alpha], [self.beta / dt]],
         })
     }
+
+    #[inline(always)]
+    fn ab_gains(&mut self, dt: f64) -> Option<(f64, f64)> {
+        Some((self.alpha, self.beta / dt))
+    }
 }
 
 /// The steady-state Kalman alpha-beta design of the white-acceleration
@@ -125,6 +138,12 @@ impl GainLaw<2, 1> for AbDesign {
             phi: phi_cv(dt),
             k: [[a], [b / dt]],
         })
+    }
+
+    #[inline(always)]
+    fn ab_gains(&mut self, dt: f64) -> Option<(f64, f64)> {
+        let (a, b) = self.gains(dt);
+        Some((a, b / dt))
     }
 }
 

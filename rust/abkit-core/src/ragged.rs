@@ -454,7 +454,7 @@ pub fn filter_tracks<
             counts: c,
         });
     }
-    let run = |b: &mut Block<'_, T, N>| run_block(filt, opts, &off, z, t, b, post);
+    let run = |b: &mut Block<'_, T, N>| run_block_dispatch(filt, opts, &off, z, t, b, post);
     let results: Vec<Result<()>> = if parallel && blocks.len() > 1 {
         blocks.par_iter_mut().map(run).collect()
     } else {
@@ -463,7 +463,13 @@ pub fn filter_tracks<
     results.into_iter().collect()
 }
 
-fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, const M: usize>(
+fn run_block_dispatch<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+>(
     filt: &TrackFilter<'_, L, N, M>,
     opts: &Options,
     off: &[usize],
@@ -472,6 +478,64 @@ fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, c
     b: &mut Block<'_, T, N>,
     post: &P,
 ) -> Result<()> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::filter::uses_fma() {
+            // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
+            return unsafe { run_block_fma(filt, opts, off, z, t, b, post) };
+        }
+        run_block::<T, L, P, N, M, false>(filt, opts, off, z, t, b, post)
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        run_block::<T, L, P, N, M, true>(filt, opts, off, z, t, b, post)
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        run_block::<T, L, P, N, M, false>(filt, opts, off, z, t, b, post)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+fn run_block_fma<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    off: &[usize],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    b: &mut Block<'_, T, N>,
+    post: &P,
+) -> Result<()> {
+    run_block::<T, L, P, N, M, true>(filt, opts, off, z, t, b, post)
+}
+
+#[inline(always)]
+fn run_block<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+    const FMA: bool,
+>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    off: &[usize],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    b: &mut Block<'_, T, N>,
+    post: &P,
+) -> Result<()> {
+    if N == 2 && M == 1 && filt.laws[0].clone().ab_gains(opts.t_nominal).is_some() {
+        return run_block_lanes::<T, L, P, N, M, FMA>(filt, opts, off, z, t, b, post);
+    }
     let mut shared: Option<L> = None;
     for j in 0..b.states.len() {
         let i = b.i0 + j;
@@ -500,7 +564,7 @@ fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, c
             Some(ts) => {
                 let tb = ts.addr(off[i]);
                 let tf = |k: usize| -> f64 { ts.data[(tb + k as isize * ts.s_sample) as usize] };
-                track_tv(
+                track_tv::<T, L, N, M, FMA>(
                     law,
                     &filt.h,
                     &filt.h_pinv,
@@ -512,11 +576,13 @@ fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, c
                     &mut o,
                     ct,
                     i,
+                    0,
+                    false,
                 )?;
                 post.post(i, &mut o.states, Some(&tf), opts.max_gap)?;
             }
             None => {
-                track_tv(
+                track_tv::<T, L, N, M, FMA>(
                     law,
                     &filt.h,
                     &filt.h_pinv,
@@ -528,6 +594,8 @@ fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, c
                     &mut o,
                     ct,
                     i,
+                    0,
+                    false,
                 )?;
                 post.post(i, &mut o.states, None, None)?;
             }
@@ -536,9 +604,290 @@ fn run_block<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, c
     Ok(())
 }
 
+/// Lanes of the interleaved alpha-beta driver.
+pub const AB_TRACK_LANES: usize = 4;
+
+/// A running alpha-beta track in a lane of [`run_block_lanes`].
+struct Lane<'a, T, L, const N: usize> {
+    j: usize,
+    k: usize,
+    n: usize,
+    zb: isize,
+    tb: isize,
+    x: f64,
+    v: f64,
+    t_last: f64,
+    dt: f64,
+    a: f64,
+    g: f64,
+    law: L,
+    out: TrackOut<'a, T, N>,
+    broken: bool,
+}
+
+/// One fast step of a lane; `false` (lane marked broken, nothing written)
+/// when the sample needs the general code (bad, duplicate or gap step).
+#[inline(always)]
+fn lane_step<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const FMA: bool>(
+    l: &mut Lane<'_, T, L, N>,
+    xv: &mut (f64, f64),
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    max_gap: f64,
+    t_nominal: f64,
+) -> bool {
+    let k = l.k;
+    let dt = match t {
+        Some(ts) => {
+            let tk = ts.data[(l.tb + k as isize * ts.s_sample) as usize];
+            let dt = tk - l.t_last;
+            if !(dt > 0.0 && dt <= max_gap && dt < f64::INFINITY) {
+                l.broken = true;
+                return false;
+            }
+            l.t_last = tk;
+            dt
+        }
+        None => t_nominal,
+    };
+    if dt != l.dt {
+        let Some((a, g)) = l.law.ab_gains(dt) else {
+            l.broken = true;
+            return false;
+        };
+        (l.dt, l.a, l.g) = (dt, a, g);
+    }
+    let zk = z.data[(l.zb + k as isize * z.s_sample) as usize].to_f64();
+    let (x1, v1, e) = ab_update::<FMA>(xv.0, xv.1, dt, l.a, l.g, zk);
+    *xv = (x1, v1);
+    let (s0, s1) = l.out.states.split_at_mut(1);
+    s0[0][k] = T::from_f64(x1);
+    s1[0][k] = T::from_f64(v1);
+    if let Some(r) = l.out.resid.as_deref_mut() {
+        r[k] = T::from_f64(e);
+    }
+    l.k = k + 1;
+    true
+}
+
+/// Alpha-beta laws: start-up and every irregular sample through
+/// [`track_tv`], the running stretches of up to [`AB_TRACK_LANES`] tracks
+/// interleaved (independent dependency chains), with the same arithmetic
+/// per track as [`track_tv`]'s fast path, so the result of a track does not
+/// depend on its lane or neighbours.
+fn run_block_lanes<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+    const FMA: bool,
+>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    off: &[usize],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    b: &mut Block<'_, T, N>,
+    post: &P,
+) -> Result<()> {
+    let max_gap = opts.max_gap.unwrap_or(f64::INFINITY);
+    let Block {
+        i0,
+        comps,
+        resid,
+        states,
+        counts,
+        ..
+    } = b;
+    let i0 = *i0;
+    let n_block = states.len();
+    let mut rest: [&mut [T]; N] = comps.each_mut().map(std::mem::take);
+    let mut rest_r: Option<&mut [T]> = resid.as_deref_mut();
+    let mut lanes: Vec<Lane<'_, T, L, N>> = Vec::with_capacity(AB_TRACK_LANES);
+    let mut next_j = 0;
+    // Run the general code on track j from sample k0 until it is running
+    // again (Some(lane state)) or done (None, post-processed).
+    macro_rules! general {
+        ($j:expr, $k0:expr, $law:expr, $out:expr) => {{
+            let j = $j;
+            let i = i0 + j;
+            let n = off[i + 1] - off[i];
+            let zb = z.addr(off[i]);
+            let zf = |k: usize| -> [f64; M] {
+                std::array::from_fn(|c| {
+                    z.data[(zb + k as isize * z.s_sample + c as isize * z.s_comp) as usize].to_f64()
+                })
+            };
+            let kk = match t {
+                Some(ts) => {
+                    let tb = ts.addr(off[i]);
+                    let tf =
+                        |k: usize| -> f64 { ts.data[(tb + k as isize * ts.s_sample) as usize] };
+                    let kk = track_tv::<T, L, N, M, FMA>(
+                        $law,
+                        &filt.h,
+                        &filt.h_pinv,
+                        opts,
+                        &mut states[j],
+                        n,
+                        zf,
+                        Some(&tf),
+                        $out,
+                        &mut counts[j],
+                        i,
+                        $k0,
+                        true,
+                    )?;
+                    if kk >= n {
+                        post.post(i, &mut $out.states, Some(&tf), opts.max_gap)?;
+                    }
+                    kk
+                }
+                None => {
+                    let kk = track_tv::<T, L, N, M, FMA>(
+                        $law,
+                        &filt.h,
+                        &filt.h_pinv,
+                        opts,
+                        &mut states[j],
+                        n,
+                        zf,
+                        None::<&fn(usize) -> f64>,
+                        $out,
+                        &mut counts[j],
+                        i,
+                        $k0,
+                        true,
+                    )?;
+                    if kk >= n {
+                        post.post(i, &mut $out.states, None, None)?;
+                    }
+                    kk
+                }
+            };
+            kk
+        }};
+    }
+    loop {
+        // Fill the lanes with the next tracks (in order: their output
+        // slices are peeled off the front of the block's buffers).
+        while lanes.len() < AB_TRACK_LANES && next_j < n_block {
+            let j = next_j;
+            next_j += 1;
+            let i = i0 + j;
+            let n = off[i + 1] - off[i];
+            let states_j: [&mut [T]; N] = std::array::from_fn(|c| {
+                let r = std::mem::take(&mut rest[c]);
+                let (a, bb) = r.split_at_mut(n.min(r.len()));
+                rest[c] = bb;
+                a
+            });
+            let resid_j = match rest_r.take() {
+                Some(r) => {
+                    let (a, bb) = r.split_at_mut((n * M).min(r.len()));
+                    rest_r = Some(bb);
+                    Some(a)
+                }
+                None => None,
+            };
+            let mut out = TrackOut {
+                states: states_j,
+                resid: resid_j,
+            };
+            let mut law = filt.laws[if filt.laws.len() == 1 { 0 } else { i }].clone();
+            let kk = general!(j, 0, &mut law, &mut out);
+            if kk < n {
+                let st = &states[j];
+                lanes.push(Lane {
+                    j,
+                    k: kk,
+                    n,
+                    zb: z.addr(off[i]),
+                    tb: t.map_or(0, |ts| ts.addr(off[i])),
+                    x: st.x[0],
+                    v: st.x[1],
+                    t_last: st.t_last,
+                    dt: f64::NAN,
+                    a: 0.0,
+                    g: 0.0,
+                    law,
+                    out,
+                    broken: false,
+                });
+            }
+        }
+        if lanes.is_empty() {
+            break;
+        }
+        if lanes.len() == AB_TRACK_LANES {
+            let steps = lanes.iter().map(|l| l.n - l.k).min().unwrap_or(0);
+            // The chains' state in locals (registers), not in the lanes.
+            let mut xv: [(f64, f64); AB_TRACK_LANES] =
+                std::array::from_fn(|q| (lanes[q].x, lanes[q].v));
+            'outer: for _ in 0..steps {
+                let mut ok = true;
+                for (l, xv) in lanes.iter_mut().zip(xv.iter_mut()) {
+                    ok &= lane_step::<T, L, N, M, FMA>(l, xv, z, t, max_gap, opts.t_nominal);
+                }
+                if !ok {
+                    break 'outer;
+                }
+            }
+            for (l, xv) in lanes.iter_mut().zip(xv.iter()) {
+                (l.x, l.v) = *xv;
+            }
+        } else {
+            for l in lanes.iter_mut() {
+                let mut xv = (l.x, l.v);
+                while l.k < l.n
+                    && lane_step::<T, L, N, M, FMA>(l, &mut xv, z, t, max_gap, opts.t_nominal)
+                {
+                }
+                (l.x, l.v) = xv;
+            }
+        }
+        // Lanes that ended or need the general code.
+        let mut idx = 0;
+        while idx < lanes.len() {
+            let l = &mut lanes[idx];
+            if l.k < l.n && !l.broken {
+                idx += 1;
+                continue;
+            }
+            let st = &mut states[l.j];
+            st.x[0] = l.x;
+            st.x[1] = l.v;
+            st.t_last = l.t_last;
+            if l.k >= l.n {
+                // Done: the general code only stores and post-processes.
+                let (j, n) = (l.j, l.n);
+                let kk = general!(j, n, &mut l.law, &mut l.out);
+                debug_assert!(kk >= n);
+                lanes.swap_remove(idx);
+                continue;
+            }
+            let (j, k0) = (l.j, l.k);
+            let kk = general!(j, k0, &mut l.law, &mut l.out);
+            if kk >= l.n {
+                lanes.swap_remove(idx);
+                continue;
+            }
+            let st = &states[l.j];
+            l.k = kk;
+            l.x = st.x[0];
+            l.v = st.x[1];
+            l.t_last = st.t_last;
+            l.broken = false;
+            idx += 1;
+        }
+    }
+    Ok(())
+}
+
 /// One track of the time-varying kernel (see the module docs).
 #[inline(always)]
-fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
+fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const FMA: bool>(
     law: &mut L,
     h: &[[f64; N]; M],
     h_pinv: &[[f64; M]; N],
@@ -550,7 +899,9 @@ fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     out: &mut TrackOut<'_, T, N>,
     counts: &mut Counts,
     track: usize,
-) -> Result<()> {
+    k0: usize,
+    lane_mode: bool,
+) -> Result<usize> {
     let nan = T::from_f64(f64::NAN);
     let max_gap = opts.max_gap.unwrap_or(f64::INFINITY);
     let mut x: [f64; N] = std::array::from_fn(|i| st.x[i]);
@@ -569,7 +920,67 @@ fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     }
     let mut t_last = st.t_last;
     let mut res = Ok(());
-    for k in 0..n {
+    // Alpha-beta fast path state: gains of the last step.
+    let is_ab = N == 2 && M == 1 && law.ab_gains(opts.t_nominal).is_some();
+    let (mut ab_dt, mut ab_a, mut ab_g) = (f64::NAN, 0.0, 0.0);
+    let mut k = k0;
+    while k < n {
+        if is_ab && phase >= 2.0 {
+            if lane_mode && k > k0 {
+                // Hand the running track to the lane driver (at `k0` itself
+                // the sample that stopped the lane is processed first).
+                st.x[..N].copy_from_slice(&x);
+                st.phase = phase;
+                st.t_last = t_last;
+                return Ok(k);
+            }
+            // Running alpha-beta over samples with valid steps: the update
+            // arranged as in the fixed-T kernel (two multiply-adds on the
+            // dependency chain); anything else (bad or duplicate timestamp,
+            // gap) falls through to the general code for that sample.
+            let (mut xx, mut vv) = (x[0], x[1]);
+            let (s0, s1) = out.states.split_at_mut(1);
+            let (xs, vs) = (&mut s0[0][..n], &mut s1[0][..n]);
+            let mut resid = out.resid.as_deref_mut().map(|r| &mut r[..n]);
+            while k < n {
+                let dt = match t {
+                    Some(tf) => {
+                        let tk = tf(k);
+                        let dt = tk - t_last;
+                        if !(dt > 0.0 && dt <= max_gap && dt < f64::INFINITY) {
+                            break;
+                        }
+                        t_last = tk;
+                        dt
+                    }
+                    None => opts.t_nominal,
+                };
+                if dt != ab_dt {
+                    let Some((a, g)) = law.ab_gains(dt) else {
+                        break;
+                    };
+                    (ab_dt, ab_a, ab_g) = (dt, a, g);
+                }
+                let zk = z(k)[0];
+                let (x1, v1, e) = ab_update::<FMA>(xx, vv, dt, ab_a, ab_g, zk);
+                xx = x1;
+                vv = v1;
+                xs[k] = T::from_f64(xx);
+                vs[k] = T::from_f64(vv);
+                if let Some(r) = resid.as_deref_mut() {
+                    r[k] = T::from_f64(e);
+                }
+                k += 1;
+            }
+            x[0] = xx;
+            x[1] = vv;
+            if k >= n {
+                break;
+            }
+        }
+        let k_now = k;
+        k += 1;
+        let k = k_now;
         let zk = z(k);
         let valid = zk.iter().all(|v| !v.is_nan());
         let mut dt = opts.t_nominal;
@@ -723,7 +1134,26 @@ fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     st.x[..N].copy_from_slice(&x);
     st.phase = phase;
     st.t_last = t_last;
-    res
+    res.map(|()| n)
+}
+
+/// One running alpha-beta step over `dt` with gains `(a, g = beta/dt)`,
+/// arranged as in the fixed-T kernel (two multiply-adds on the dependency
+/// chain); a NaN `z` coasts. Returns `(x', v', residual or NaN)`.
+#[inline(always)]
+fn ab_update<const FMA: bool>(x: f64, v: f64, dt: f64, a: f64, g: f64, zk: f64) -> (f64, f64, f64) {
+    let xp = crate::filter::madd::<FMA>(dt, v, x);
+    let valid = !zk.is_nan();
+    let e = if valid { zk - xp } else { f64::NAN };
+    let zz = if valid { zk } else { 0.0 };
+    let c1 = if valid { 1.0 - a } else { 1.0 };
+    let g = if valid { g } else { 0.0 };
+    let w = crate::filter::madd::<FMA>(g, zz, v);
+    (
+        crate::filter::madd::<FMA>(c1, xp, a * zz),
+        crate::filter::madd::<FMA>(-g, xp, w),
+        e,
+    )
 }
 
 fn data_err(track: usize, sample: usize, e: Error) -> Error {

@@ -108,6 +108,9 @@ pub fn smooth_track<T: IoFloat, const N: usize>(
     }
 }
 
+/// `(Phi(dt), A(dt))` of one backward step.
+pub type PhiAndGain<const N: usize> = ([[f64; N]; N], [[f64; N]; N]);
+
 /// Smooth one track with timestamps in place: the backward step from
 /// sample `k` to the next kept sample `j` (the next one whose estimate has
 /// no NaN) uses `gain(t_j - t_k) = (Phi, A)` for that interval. Samples with
@@ -119,7 +122,7 @@ pub fn smooth_track_tv<T: IoFloat, const N: usize>(
     max_gap: f64,
     lag: Option<usize>,
     states: &mut [&mut [T]; N],
-    gain: &mut dyn FnMut(f64) -> crate::Result<([[f64; N]; N], [[f64; N]; N])>,
+    gain: &mut dyn FnMut(f64) -> crate::Result<PhiAndGain<N>>,
 ) -> crate::Result<()> {
     let n = states.first().map_or(0, |s| s.len());
     match lag {

@@ -80,3 +80,45 @@ fn singer_design_is_the_steady_state_kalman_gain() {
     assert!(SingerDesign::new(0.0, 1.0, 1.0).is_err());
     assert!(SingerDesign::new(1.0, 1.0, -1.0).is_err());
 }
+
+#[test]
+fn ab_backward_gain_is_the_rts_gain_of_the_riccati_solution() {
+    // Independent route: iterate the Riccati recursion of the
+    // white-acceleration model (Q = sigma_w^2 d d', d = [dt^2/2, dt],
+    // R = sigma_v^2) to convergence, then A = P Phi' M^-1.
+    let (sw, sv) = (0.7, 2.0);
+    for &dt in &[0.05, 0.5, 3.0] {
+        let phi = nalgebra::Matrix2::new(1.0, dt, 0.0, 1.0);
+        let d = nalgebra::Vector2::new(dt * dt / 2.0, dt);
+        let q = d * d.transpose() * (sw * sw);
+        let r = sv * sv;
+        let mut m = nalgebra::Matrix2::<f64>::identity() * 1e3;
+        let mut p = m;
+        for _ in 0..100_000 {
+            let k = m.column(0) / (m[(0, 0)] + r);
+            p = m - k * m.row(0);
+            m = phi * p * phi.transpose() + q;
+        }
+        let a_ref = p * phi.transpose() * m.try_inverse().unwrap();
+        let (phi_k, a) = AbBackward::Design(sw / sv).at(dt);
+        assert_eq!(phi_k, [[1.0, dt], [0.0, 1.0]]);
+        for i in 0..2 {
+            for j in 0..2 {
+                let rel = (a[i][j] - a_ref[(i, j)]).abs() / a_ref[(i, j)].abs().max(1e-12);
+                assert!(
+                    rel < 1e-9,
+                    "dt={dt} A[{i}][{j}] = {} vs {}",
+                    a[i][j],
+                    a_ref[(i, j)]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn ab_backward_fixed_scales_with_dt() {
+    let an = [[0.9, 0.3], [-0.2, 0.8]];
+    let (_, a) = AbBackward::Fixed(an).at(2.0);
+    assert_eq!(a, [[0.9, 0.6], [-0.1, 0.8]]);
+}
