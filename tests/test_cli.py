@@ -90,31 +90,110 @@ def test_design_errors_exit_2(args: list, needle: str) -> None:
     assert "Traceback" not in out.stderr
 
 
-def test_demo_writes_nomograph(tmp_path: pathlib.Path) -> None:
+def test_demo_writes_figure(tmp_path: pathlib.Path) -> None:
+    """The demo's designs are printed (alpha-beta from Kalata's closed form at
+    the scenario's tracking index sigma_m T^2 / sigma_pos = 5/30) and the
+    figure is written."""
     pytest.importorskip("matplotlib")
-    out = run("demo", "--out", str(tmp_path))
+    out = run("demo", "--out", str(tmp_path), "--tracks", "100", "--samples", "300")
     assert out.returncode == 0, out.stderr
-    png = tmp_path / "abkit_nomograph.png"
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    a, _ = kalata(3.2 * 0.01 / 32)
-    assert f"{a:.10g}"[:8] in out.stdout
+    png = tmp_path / "abkit_demo.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 50_000
+    a, b = kalata(5.0 / 30.0)
+    assert f"alpha-beta        alpha={a:.4g}, beta={b:.4g}" in out.stdout
+    assert "MISMATCHED" in out.stdout and "M samples/s" in out.stdout
+    assert out.stderr == ""  # no progress bar when stderr is not a terminal
 
 
 def test_demo_help() -> None:
     out = run("demo", "--help")
-    assert out.returncode == 0 and "--out" in out.stdout
+    assert out.returncode == 0
+    for flag in ("--tracks", "--samples", "--seed", "--missed", "--out", "--no-plot"):
+        assert flag in out.stdout
 
 
-def test_demo_fleet_errors_match_theory() -> None:
-    """The demo's simulated fleet: empirical rms errors within 10 % of the
-    steady-state theory (fixed seed; 5 % missed fixes raise them slightly)."""
-    out = run("demo", "--no-plot", "--tracks", "300", "--samples", "1500", "--seed", "1")
+def _demo_rows(stdout: str) -> dict:
+    rows = {}
+    for ln in stdout.splitlines():
+        if "filtered [" in ln or "smoothed [" in ln:
+            label, rest = ln.split("]", 1)
+            vals = [float(v) if v != "-" else None for v in rest.split()]
+            rows[label + "]"] = vals
+    return rows
+
+
+def test_demo_errors_match_theory_without_misses() -> None:
+    """No missed detections: every empirical rms error is within 3 % of the
+    exact steady state under the true (Singer) model, for the mismatched
+    alpha-beta and alpha-beta-gamma filters too; the Singer filter's own
+    (design) theory equals the true-model theory."""
+    out = run("demo", "--no-plot", "--tracks", "1500", "--samples", "500", "--seed", "1", "--missed", "0")
     assert out.returncode == 0, out.stderr
-    rows = [ln.split() for ln in out.stdout.splitlines() if ln.strip().startswith(("position,", "velocity,"))]
-    assert len(rows) == 4
-    for r in rows:
-        emp, th = float(r[-2]), float(r[-1])
-        assert abs(emp / th - 1) < 0.10, r
+    rows = _demo_rows(out.stdout)
+    assert len(rows) == 12
+    checked = 0
+    for label, (emp, th_true, th_design) in rows.items():
+        if th_true is not None:
+            assert abs(emp / th_true - 1) < 0.03, (label, emp, th_true)
+            checked += 1
+        if label.startswith("Singer"):
+            assert th_true == th_design
+    assert checked == 8  # 3 filters x 2 filtered + Singer's 2 smoothed
+    # the design models of the mismatched filters are visibly wrong for alpha-beta
+    emp, th_true, th_design = rows["alpha-beta position, filtered [m]"]
+    assert th_design < 0.8 * emp
+
+
+def test_demo_with_misses_is_a_little_worse_than_theory() -> None:
+    out = run("demo", "--no-plot", "--tracks", "500", "--samples", "400", "--seed", "2", "--missed", "0.1")
+    assert out.returncode == 0, out.stderr
+    for label, (emp, th_true, _) in _demo_rows(out.stdout).items():
+        if th_true is not None:
+            assert 1.0 < emp / th_true < 1.2, (label, emp, th_true)
+
+
+def test_demo_without_matplotlib_skips_the_figure(tmp_path: pathlib.Path) -> None:
+    code = (
+        "import sys; sys.modules['matplotlib'] = None\n"
+        "from abkit.cli import main\n"
+        f"sys.exit(main(['demo', '--tracks', '20', '--samples', '50', '--out', {str(tmp_path)!r}]))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "figure skipped" in out.stderr and "pip install 'abkit[plot]'" in out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "abkit_demo.png").exists()
+
+
+def test_true_model_covariance_matched_equals_steady_state() -> None:
+    """For the Singer filter (model = truth) the augmented-state theory equals
+    the filter's own steady-state covariance (rtol 1e-9)."""
+    import numpy as np
+
+    from abkit import FixedGainFilter, _cli_demo, singer
+
+    s = singer.steady_state(0.5, 7.0, 2.0, 10.0)
+    f = FixedGainFilter(s.Phi, s.H, s.K, 0.5)
+    p = _cli_demo.true_model_covariance(np.asarray(s.Phi), np.asarray(s.Q), np.asarray(s.R), np.asarray(s.Phi), np.asarray(s.H), np.asarray(s.K))
+    np.testing.assert_allclose(p, f.covariances(s.Q, s.R).filtered, rtol=1e-9)
+    np.testing.assert_allclose(p, s.P_filt, rtol=1e-8)
+
+
+def test_progress_bar_only_on_a_terminal() -> None:
+    import io
+
+    from abkit._progress import Progress
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    tty, plain = Tty(), io.StringIO()
+    for stream in (tty, plain):
+        with Progress(4, "work", stream=stream) as p:
+            for _ in range(4):
+                p.update()
+    assert "work [" in tty.getvalue() and "100%" in tty.getvalue()
+    assert plain.getvalue() == ""
 
 
 @pytest.mark.parametrize("args", [["--tracks", "0"], ["--missed", "1.5"], ["--samples", "x"]])
@@ -189,3 +268,56 @@ def test_design_singer_errors() -> None:
     assert out.returncode == 2 and "T" in out.stderr and "Traceback" not in out.stderr
     out = run("design", "singer", "--tau", "10")
     assert out.returncode == 2
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_bench_runs_and_prints_the_table(dtype: str) -> None:
+    """`abkit bench` at a tiny size: every method is checked against abkit
+    inside the command (it fails otherwise); the table lists them all. No
+    timing assertions."""
+    out = run("bench", "--tracks", "3", "--samples", "40", "--repeat", "1", "--dtype", dtype)
+    assert out.returncode == 0, out.stderr
+    for name in ("abkit, all cores", "abkit, 1 thread", "ceiling", "NumPy vectorised", "scipy.signal.lfilter", "pure Python loop"):
+        assert name in out.stdout, name
+    assert "M samples/s" in out.stdout and "of the memory-bandwidth ceiling" in out.stdout
+    diffs = [float(ln.split()[-1]) for ln in out.stdout.splitlines() if ln.startswith(("NumPy", "scipy"))]
+    assert len(diffs) == 2 and max(diffs) < (1e-9 if dtype == "float64" else 2e-3)
+
+
+def test_bench_lfilter_coefficients_match_the_recursion() -> None:
+    """The transfer functions the benchmark gives lfilter reproduce a plain
+    alpha-beta loop from the zero state (rtol 1e-12)."""
+    import numpy as np
+    import scipy.signal
+
+    from abkit import _cli_bench
+
+    z = np.random.default_rng(5).normal(size=200).cumsum()
+    bx, bv, den = _cli_bench._lfilter_coeffs()
+    a, b, T = _cli_bench.ALPHA, _cli_bench.BETA, _cli_bench.T
+    x = v = 0.0
+    px, pv = [], []
+    for zk in z:
+        xp = x + T * v
+        x, v = xp + a * (zk - xp), v + b / T * (zk - xp)
+        px.append(x)
+        pv.append(v)
+    np.testing.assert_allclose(scipy.signal.lfilter(bx, den, z), px, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(scipy.signal.lfilter(bv, den, z), pv, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("args", [["--tracks", "0"], ["--dtype", "int8"], ["--repeat", "x"]])
+def test_bench_bad_flags(args: list) -> None:
+    out = run("bench", *args)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+
+
+def test_bench_without_scipy_says_so() -> None:
+    code = (
+        "import sys; sys.modules['scipy'] = None\n"
+        "from abkit.cli import main\n"
+        "sys.exit(main(['bench', '--tracks', '2', '--samples', '30', '--repeat', '1']))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "scipy not installed" in out.stdout and "NumPy vectorised" in out.stdout

@@ -108,3 +108,40 @@ def test_readme_quick_start_runs() -> None:
     assert len(lines) <= 12
     out = subprocess.run([sys.executable, "-c", code[0]], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
+
+
+def _nav_pages() -> list:
+    text = (ROOT / "mkdocs.yml").read_text()
+    nav = text.split("\nnav:\n", 1)[1].split("\n\n", 1)[0]
+    return re.findall(r":\s*([\w./-]+\.md)\s*$", nav, flags=re.M)
+
+
+def test_every_docs_page_is_in_the_site_nav() -> None:
+    """Each Markdown page under docs/ is reachable from the MkDocs nav, and
+    every nav entry exists (a new page must be added to mkdocs.yml)."""
+    docs = ROOT / "docs"
+    pages = sorted(str(p.relative_to(docs)) for p in docs.rglob("*.md"))
+    nav = _nav_pages()
+    assert len(nav) == len(set(nav)), "duplicate nav entries"
+    assert sorted(nav) == pages, f"missing from nav: {sorted(set(pages) - set(nav))}; not in docs/: {sorted(set(nav) - set(pages))}"
+
+
+@pytest.mark.parametrize("page", ["getting-started.md", "singer.md", "riccati.md", "plots.md"])
+def test_docs_python_examples_run(page: str, tmp_path: pathlib.Path) -> None:
+    """The ```python blocks of the page run, in order, in one namespace."""
+    pytest.importorskip("matplotlib")
+    blocks = re.findall(r"```python\n(.*?)\n```", (ROOT / "docs" / page).read_text(), flags=re.S)
+    assert blocks
+    code = "\n".join(blocks)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=str(tmp_path))
+    assert out.returncode == 0, out.stderr
+
+
+def test_mkdocs_build_strict(tmp_path: pathlib.Path) -> None:
+    """The documentation site builds with --strict (CI runs it too)."""
+    pytest.importorskip("mkdocs")
+    pytest.importorskip("mkdocstrings")
+    out = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d", str(tmp_path / "site")],
+                         capture_output=True, text=True, cwd=str(ROOT), env={**__import__("os").environ, "NO_MKDOCS_2_WARNING": "1"})
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert (tmp_path / "site" / "api" / "filters" / "index.html").exists()

@@ -27,7 +27,8 @@ singer
     The Singer (exponentially correlated acceleration) model and the steady
     state of its Kalman filter (Yoon & Hong).
 plot
-    Figures (the design nomograph, the Singer error curves); needs
+    Figures (design nomograph, Singer error curves, frequency response,
+    pole-zero map, Kalman gain convergence, track view); needs
     ``abkit[plot]``.
 """
 

@@ -11,16 +11,19 @@ abkit design singer ...
 abkit run INPUT -o OUTPUT ...
     Filter a file of tracks (CSV, Parquet, .npy, .npz); see ``abkit run --help``.
 abkit demo
-    The paper's GPS car example: design table, a simulated fleet filtered and
-    smoothed (empirical vs theoretical errors, throughput), and the design
-    nomograph PNG.
+    Manoeuvring targets simulated, filtered and smoothed with alpha-beta,
+    alpha-beta-gamma and Singer filters designed from the scenario's noise:
+    empirical vs theoretical errors, throughput, a figure
+    (``_cli_demo.py``).
+abkit bench
+    abkit's alpha-beta filter against NumPy, scipy.signal.lfilter and pure
+    Python, and the memory-bandwidth ceiling (``_cli_bench.py``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from typing import List, Optional, Sequence
 
@@ -196,98 +199,6 @@ def _design_abg(p: argparse.ArgumentParser, a: argparse.Namespace) -> int:
     return 0
 
 
-def _demo(a: argparse.Namespace) -> int:
-    import os
-
-    out = a.out
-    os.makedirs(out, exist_ok=True)
-    sigma_w, sigma_v, T = 3.2, 32.0, 0.1
-    print("abkit demo: the GPS car of Painter, Kerstetter & Jowers (1990)")
-    print(f"  sigma_w = {sigma_w} ft/s^2 (driver lateral acceleration), sigma_v = {sigma_v} ft (GPS), T = {T} s\n")
-    car = ab.from_noise(sigma_w, sigma_v, T)
-    print(car.table())
-    print(f"  rms tracking error = sigma_v*sqrt(alpha) = {sigma_v * math.sqrt(car.alpha):.4g} ft\n")
-    chart = ab.from_snr(0.1)
-    print("The paper prints alpha=0.68, beta=0.375, B_N*T=0.175 (read off its nomograph at '-20 dB').")
-    print("Those readings match the Kalman design at r = 0.1, not the car's r = 2.5e-7 of eq (9):")
-    print(f"  r = 0.1: alpha={chart.alpha:.4f}, beta={chart.beta:.4f}, B_N*T={chart.bandwidth_T:.4f}"
-          "  (see docs/errata.md)\n")
-    _demo_fleet(car, sigma_w, sigma_v, T, a.tracks, a.samples, a.seed, a.missed)
-    if a.no_plot:
-        return 0
-    try:
-        from . import plot
-
-        plt = plot._pyplot()
-    except ImportError as exc:
-        print(f"abkit demo: {exc}; skipping the nomograph (use --no-plot to silence)", file=sys.stderr)
-        return 1
-    ax = plot.nomograph(design=car)
-    path = os.path.join(out, "abkit_nomograph.png")
-    ax.figure.savefig(path, dpi=120)
-    plt.close(ax.figure)
-    print(f"wrote the design nomograph with the car's design marked: {path}")
-    return 0
-
-
-def _demo_fleet(car: ab.AlphaBeta, sigma_w: float, sigma_v: float, T: float, n_tracks: int, n_samples: int, seed: int, missed: float) -> None:
-    """Simulate a fleet of cars with the paper's noise model, filter and
-    smooth every track, and compare the empirical errors with theory."""
-    import time
-
-    import numpy as np
-
-    from .filters import AlphaBetaFilter
-
-    print(f"Filtering {n_tracks:,} simulated cars x {n_samples:,} samples "
-          f"({missed:.0%} missed GPS fixes, seed {seed}):")
-    rng = np.random.default_rng(seed)
-    t0 = time.perf_counter()
-    # White acceleration held over each period (paper 000, eq (2)).
-    w = rng.normal(0.0, sigma_w, (n_tracks, n_samples))
-    vel = np.cumsum(w * T, axis=1) + rng.normal(0.0, 30.0, (n_tracks, 1))
-    pos = np.cumsum(vel * T, axis=1) - np.cumsum(w * (T * T / 2), axis=1)
-    del w
-    z = pos + rng.normal(0.0, sigma_v, pos.shape)
-    z[rng.random(z.shape) < missed] = np.nan
-    t_sim = time.perf_counter() - t0
-    f = AlphaBetaFilter.from_design(car)
-    out = np.empty((2,) + z.shape)
-    out.fill(0.0)  # touch the pages before timing
-    f.run(z[: max(1, n_tracks // 100)], threads=None)  # start rayon's pool
-    t0 = time.perf_counter()
-    f.run(z, out=out)
-    t_run = time.perf_counter() - t0
-    warm = min(n_samples // 2, 400)
-    err_f = out[:, :, warm:] - np.stack([pos, vel])[:, :, warm:]
-    t0 = time.perf_counter()
-    s = f.smooth(z, out=out)
-    t_smooth = time.perf_counter() - t0
-    edge = slice(warm, n_samples - warm) if n_samples > 2 * warm else slice(warm, None)
-    err_s = s.states[:, :, edge] - np.stack([pos, vel])[:, :, edge]
-    theory = f.covariances(sigma_w=sigma_w, sigma_v=sigma_v)
-
-    def rms(e: np.ndarray) -> float:
-        return float(np.sqrt(np.nanmean(e * e)))
-
-    rows = [
-        ("position, filtered [ft]", rms(err_f[0]), math.sqrt(theory.filtered[0, 0])),
-        ("velocity, filtered [ft/s]", rms(err_f[1]), math.sqrt(theory.filtered[1, 1])),
-    ]
-    if theory.smoothed is not None:
-        rows += [
-            ("position, smoothed [ft]", rms(err_s[0]), math.sqrt(theory.smoothed[0, 0])),
-            ("velocity, smoothed [ft/s]", rms(err_s[1]), math.sqrt(theory.smoothed[1, 1])),
-        ]
-    print(f"  {'rms error':<28}{'empirical':>12}{'theory':>12}")
-    for name, emp, th in rows:
-        print(f"  {name:<28}{emp:>12.4g}{th:>12.4g}")
-    n = z.size
-    print(f"  (theory: steady state with every fix received; {missed:.0%} misses raise the empirical values a little)")
-    print(f"  simulation {t_sim:.2f} s; filter {t_run:.3f} s = {n / t_run / 1e6:.0f} M samples/s; "
-          f"filter+smooth {t_smooth:.3f} s = {n / t_smooth / 1e6:.0f} M samples/s\n")
-
-
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="abkit", description="Design, analyse and run fixed-gain tracking filters.")
     p.add_argument("--version", action="version", version=f"abkit {__version__}")
@@ -358,21 +269,13 @@ def _parser() -> argparse.ArgumentParser:
     sg.add_argument("--json", action="store_true", help="print JSON instead of a table")
     sg.set_defaults(func=_design_singer)
 
-    dm = sub.add_parser(
-        "demo",
-        help="the paper's GPS car example: design, nomograph, and a simulated fleet filtered and smoothed",
-        description="Design the alpha-beta filter of the paper's GPS car example, print the design, "
-        "simulate a fleet of cars with that noise model (with missed fixes), filter and smooth every "
-        "track, compare the empirical rms errors with the theoretical steady state, report the "
-        "throughput, and write the design nomograph PNG.",
-    )
-    dm.add_argument("--out", default=".", help="directory for the PNG (default: current directory)")
-    dm.add_argument("--no-plot", action="store_true", help="print the tables only")
-    dm.add_argument("--tracks", type=_positive_int, default=2000, help="simulated cars (default 2000)")
-    dm.add_argument("--samples", type=_positive_int, default=2000, help="samples per car (default 2000)")
-    dm.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    dm.add_argument("--missed", type=_fraction, default=0.05, help="fraction of missed fixes (default 0.05)")
-    dm.set_defaults(func=_demo)
+    from . import _cli_demo
+
+    _cli_demo.add_parser(sub, _positive_int, _fraction)
+
+    from . import _cli_bench
+
+    _cli_bench.add_parser(sub, _positive_int)
 
     from . import _cli_run
 

@@ -29,6 +29,10 @@
 use crate::{Error, Result};
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+#[path = "filter_simd.rs"]
+mod simd;
+
 /// Largest state dimension of the general kernel.
 pub const MAX_STATES: usize = 6;
 /// Largest measurement dimension of the general kernel.
@@ -111,7 +115,7 @@ const _: () = assert!(
 /// View a `(n_tracks, STATE_WIDTH)` `f64` buffer as per-track states, in
 /// place (no copy). Errors if the length is not a multiple of `STATE_WIDTH`.
 pub fn states_from_f64(packed: &mut [f64]) -> Result<&mut [TrackState]> {
-    if packed.len() % STATE_WIDTH != 0 {
+    if !packed.len().is_multiple_of(STATE_WIDTH) {
         return Err(Error::Shape(format!(
             "state buffer of {} f64 is not a multiple of {STATE_WIDTH}",
             packed.len()
@@ -539,6 +543,8 @@ fn ab_lanes_fma<T: IoFloat>(
 
 /// [`ab_lanes`] from a context that may not have the FMA target feature
 /// (a closure run by rayon): `FMA` is true only when [`uses_fma`] said so.
+/// Takes the vector lanes where the CPU has them (bit-identical results).
+#[allow(clippy::too_many_arguments)]
 fn ab_lanes_entry<T: IoFloat, const FMA: bool>(
     c: &[AbConst; AB_LANES],
     x: &mut [f64; AB_LANES],
@@ -547,9 +553,15 @@ fn ab_lanes_entry<T: IoFloat, const FMA: bool>(
     z: [&[T]; AB_LANES],
     xs: [&mut [T]; AB_LANES],
     vs: [&mut [T]; AB_LANES],
+    nt: bool,
 ) {
     #[cfg(target_arch = "x86_64")]
     {
+        if FMA && simd::available() && simd::fits::<T>(0, n) {
+            // SAFETY: `available()` checked AVX-512F and FMA on this CPU.
+            unsafe { simd::ab_lanes8(c, x, v, 0, n, z, xs, vs, None, nt) };
+            return;
+        }
         if FMA {
             // SAFETY: FMA = true is only instantiated after `uses_fma()`
             // confirmed the CPU supports FMA.
@@ -557,7 +569,17 @@ fn ab_lanes_entry<T: IoFloat, const FMA: bool>(
             return;
         }
     }
+    let _ = nt;
     ab_lanes::<T, FMA>(c, x, v, 0, n, z, xs, vs, None)
+}
+
+/// Whether outputs of `bytes` bytes are written with non-temporal stores by
+/// the vector lanes (which write whole 64-byte lines): only outputs much
+/// bigger than the caches. `f32` too if `lines_f32` (the kernel writes
+/// whole lines of `f32` as well).
+fn streamed<T: 'static>(bytes: usize, lines_f32: bool) -> bool {
+    let f64_ = std::any::TypeId::of::<T>() == std::any::TypeId::of::<f64>();
+    (f64_ || lines_f32) && bytes >= NT_MIN_BYTES
 }
 
 /// Hint the CPU to fetch the cache line at `p` (no effect on memory, never
@@ -573,6 +595,14 @@ fn prefetch<T>(p: *const T) {
     #[cfg(not(target_arch = "x86_64"))]
     let _ = p;
 }
+
+/// Outputs of at least this many bytes are written with non-temporal
+/// (cache-bypassing) stores by the vector lanes.
+const NT_MIN_BYTES: usize = 64 << 20;
+
+/// Rows at least this long run in the vector lanes (on shorter rows the
+/// scalar heads and tails cost more than the vector loop saves).
+const SIMD_MIN_SAMPLES: usize = 256;
 
 /// Tracks at most this long get software prefetching of the next group of
 /// tracks (the hardware prefetcher does not ramp up on short rows).
@@ -697,8 +727,9 @@ fn ab_split<T: IoFloat, const FMA: bool>(
         let mut vb0: [f64; AB_LANES] = std::array::from_fn(|l| v0[AB_LANES + l]);
         // Closures are separate functions that do not inherit the caller's
         // target features: enter the FMA code explicitly.
-        let run_a = || ab_lanes_entry::<T, FMA>(&cs, &mut xa0, &mut va0, ls, za, xa, va);
-        let run_b = || ab_lanes_entry::<T, FMA>(&cs, &mut xb0, &mut vb0, ls, zb, xb, vb);
+        let nt = streamed::<T>(2 * n * std::mem::size_of::<T>(), true);
+        let run_a = || ab_lanes_entry::<T, FMA>(&cs, &mut xa0, &mut va0, ls, za, xa, va, nt);
+        let run_b = || ab_lanes_entry::<T, FMA>(&cs, &mut xb0, &mut vb0, ls, zb, xb, vb, nt);
         if parallel {
             rayon::join(run_a, run_b);
         } else {
@@ -880,6 +911,17 @@ fn ab_group<T: IoFloat, const FMA: bool>(
     }
     let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
         .then(|| (AB_LANES * z.s_track as usize, AB_LANES * n));
+    #[cfg(target_arch = "x86_64")]
+    if FMA && n >= SIMD_MIN_SAMPLES && simd::available() && simd::fits::<T>(kmax, n) {
+        let nt = streamed::<T>(2 * z.n_tracks * n * std::mem::size_of::<T>(), true);
+        // SAFETY: `available()` checked AVX-512F and FMA on this CPU.
+        unsafe { simd::ab_lanes8(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead, nt) };
+        for (l, (_, st, _)) in group.iter_mut().enumerate() {
+            st.x[0] = x[l];
+            st.x[1] = v[l];
+        }
+        return;
+    }
     ab_lanes::<T, FMA>(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead);
     for (l, (_, st, _)) in group.iter_mut().enumerate() {
         st.x[0] = x[l];
@@ -1269,6 +1311,16 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     }
     let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
         .then(|| (GEN_LANES * z.s_track as usize, GEN_LANES * n));
+    #[cfg(target_arch = "x86_64")]
+    if FMA && n >= kmax + 64 && simd::avx2_available() && simd::gen_fits::<T>(M) {
+        let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), false);
+        // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
+        unsafe { simd::gen_lanes4::<T, N, M>(cs, &mut xs, kmax, n, rows, group, ahead, nt) };
+        for (l, (_, st, _)) in group.iter_mut().enumerate() {
+            st.x[..N].copy_from_slice(&xs[l]);
+        }
+        return;
+    }
     let line = (64 / std::mem::size_of::<T>()).max(1);
     for k in kmax..n {
         if let Some((dz, dout)) = ahead {

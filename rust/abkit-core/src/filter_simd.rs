@@ -1,0 +1,580 @@
+//! Vector lanes. Alpha-beta (AVX-512): the eight tracks of an [`AB_LANES`]
+//! group in the eight `f64` slots of one register. The general kernel
+//! (AVX2): the four tracks of a [`GEN_LANES`] group (see [`gen_lanes4`]).
+//!
+//! Each lane reads eight consecutive samples of its own track (one vector
+//! load), an 8 x 8 transpose turns the eight rows into eight vectors of "the
+//! same step of every track", eight vector steps run the recursion, and two
+//! more transposes turn the estimates back into rows for eight-wide stores.
+//! The arithmetic of each slot is exactly the scalar [`ab_step`] with FMA
+//! (the same fused operations in the same order), so results are
+//! bit-identical to the scalar kernel: the lanes that run here and the ones
+//! that run scalar (heads, tails, other CPUs) agree to the last bit.
+//!
+//! Every lane first steps (scalar) to a sample whose output address is
+//! aligned to a whole vector, so the stores are aligned and, for outputs too
+//! big for the caches, non-temporal (whole lines written without being read
+//! first). Lanes may therefore be at different samples; they are
+//! independent tracks.
+
+use std::any::TypeId;
+use std::arch::x86_64::*;
+
+const W: usize = 8;
+
+use super::{ab_step, gen_step, prefetch, AbConst, GenConst, IoFloat, Job, AB_LANES, GEN_LANES};
+
+/// Whether the environment variable `ABKIT_DISABLE_SIMD` (set to anything
+/// but `0` before the first call) turns the vector lanes off. The scalar
+/// lanes give bit-identical results; the switch exists for comparisons and
+/// debugging.
+fn disabled() -> bool {
+    std::env::var_os("ABKIT_DISABLE_SIMD").is_some_and(|v| v != "0")
+}
+
+/// Whether this CPU runs the AVX-512 alpha-beta lanes (checked once).
+pub(super) fn available() -> bool {
+    use std::sync::OnceLock;
+    static OK: OnceLock<bool> = OnceLock::new();
+    *OK.get_or_init(|| {
+        !disabled() && is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("fma")
+    })
+}
+
+fn is_f64<T: 'static>() -> bool {
+    TypeId::of::<T>() == TypeId::of::<f64>()
+}
+
+fn is_f32<T: 'static>() -> bool {
+    TypeId::of::<T>() == TypeId::of::<f32>()
+}
+
+/// Eight consecutive samples at `p`, widened to `f64`.
+///
+/// # Safety
+/// `T` is `f64` or `f32`, `p..p+8` is readable, and AVX-512F is available.
+#[inline]
+#[target_feature(enable = "avx512f")]
+unsafe fn load8<T: 'static>(p: *const T) -> __m512d {
+    // SAFETY: forwarded from the caller (T is f64 or f32, 8 elements readable).
+    unsafe {
+        if is_f64::<T>() {
+            _mm512_loadu_pd(p as *const f64)
+        } else {
+            _mm512_cvtps_pd(_mm256_loadu_ps(p as *const f32))
+        }
+    }
+}
+
+/// Store one cache line's worth of values at `p`: the 8 values of `a`
+/// (`f64`), or the 16 of `a` then `b` narrowed to `f32` (round to nearest);
+/// streamed past the caches if `nt`.
+///
+/// # Safety
+/// `T` is `f64` or `f32`, the 64 bytes at `p` are writable and, if `nt`,
+/// aligned to 64 bytes; AVX-512F is available.
+#[inline]
+#[target_feature(enable = "avx512f")]
+unsafe fn store_line<T: 'static>(p: *mut T, a: __m512d, b: __m512d, nt: bool) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if is_f64::<T>() {
+            if nt {
+                _mm512_stream_pd(p as *mut f64, a)
+            } else {
+                _mm512_storeu_pd(p as *mut f64, a)
+            }
+        } else {
+            let lo = _mm256_castps_pd(_mm512_cvtpd_ps(a));
+            let hi = _mm256_castps_pd(_mm512_cvtpd_ps(b));
+            let line = _mm512_castpd_ps(_mm512_insertf64x4::<1>(_mm512_castpd256_pd512(lo), hi));
+            if nt {
+                _mm512_stream_ps(p as *mut f32, line)
+            } else {
+                _mm512_storeu_ps(p as *mut f32, line)
+            }
+        }
+    }
+}
+
+/// In-place transpose of the 8 x 8 matrix whose rows are `r`.
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn transpose8(r: &mut [__m512d; 8]) {
+    // Stage 1: 2 x 2 blocks within 128-bit lanes.
+    let t0 = _mm512_unpacklo_pd(r[0], r[1]);
+    let t1 = _mm512_unpackhi_pd(r[0], r[1]);
+    let t2 = _mm512_unpacklo_pd(r[2], r[3]);
+    let t3 = _mm512_unpackhi_pd(r[2], r[3]);
+    let t4 = _mm512_unpacklo_pd(r[4], r[5]);
+    let t5 = _mm512_unpackhi_pd(r[4], r[5]);
+    let t6 = _mm512_unpacklo_pd(r[6], r[7]);
+    let t7 = _mm512_unpackhi_pd(r[6], r[7]);
+    // Stage 2: 4 x 4 blocks (128-bit pieces of two rows interleaved).
+    let lo = _mm512_set_epi64(13, 12, 5, 4, 9, 8, 1, 0);
+    let hi = _mm512_set_epi64(15, 14, 7, 6, 11, 10, 3, 2);
+    let u0 = _mm512_permutex2var_pd(t0, lo, t2);
+    let u2 = _mm512_permutex2var_pd(t0, hi, t2);
+    let u1 = _mm512_permutex2var_pd(t1, lo, t3);
+    let u3 = _mm512_permutex2var_pd(t1, hi, t3);
+    let u4 = _mm512_permutex2var_pd(t4, lo, t6);
+    let u6 = _mm512_permutex2var_pd(t4, hi, t6);
+    let u5 = _mm512_permutex2var_pd(t5, lo, t7);
+    let u7 = _mm512_permutex2var_pd(t5, hi, t7);
+    // Stage 3: 256-bit halves.
+    r[0] = _mm512_shuffle_f64x2::<0b01_00_01_00>(u0, u4);
+    r[4] = _mm512_shuffle_f64x2::<0b11_10_11_10>(u0, u4);
+    r[1] = _mm512_shuffle_f64x2::<0b01_00_01_00>(u1, u5);
+    r[5] = _mm512_shuffle_f64x2::<0b11_10_11_10>(u1, u5);
+    r[2] = _mm512_shuffle_f64x2::<0b01_00_01_00>(u2, u6);
+    r[6] = _mm512_shuffle_f64x2::<0b11_10_11_10>(u2, u6);
+    r[3] = _mm512_shuffle_f64x2::<0b01_00_01_00>(u3, u7);
+    r[7] = _mm512_shuffle_f64x2::<0b11_10_11_10>(u3, u7);
+}
+
+/// The eight lanes over samples `k0..n` (see the module docs): the same
+/// contract as the scalar `ab_lanes`, with non-temporal stores if `nt`.
+/// The caller checks [`fits`] first.
+///
+/// # Safety
+/// The CPU supports AVX-512F and FMA ([`available`]).
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx512f,fma")]
+pub(super) unsafe fn ab_lanes8<T: IoFloat>(
+    c: &[AbConst; AB_LANES],
+    x_out: &mut [f64; AB_LANES],
+    v_out: &mut [f64; AB_LANES],
+    k0: usize,
+    n: usize,
+    z: [&[T]; AB_LANES],
+    xs: [&mut [T]; AB_LANES],
+    vs: [&mut [T]; AB_LANES],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
+    if !fits::<T>(k0, n)
+        || z.iter().any(|r| r.len() < n)
+        || xs.iter().chain(vs.iter()).any(|r| r.len() < n)
+    {
+        super::ab_lanes::<T, true>(c, x_out, v_out, k0, n, z, xs, vs, ahead);
+        return;
+    }
+    let z = z.map(|s| &s[..n]);
+    let mut xs = xs.map(|s| &mut s[..n]);
+    let mut vs = vs.map(|s| &mut s[..n]);
+    let (mut x, mut v) = (*x_out, *v_out);
+    // Whole cache lines per lane and block: 8 f64 or 16 f32 samples.
+    let bytes = 64;
+    let sb = bytes / std::mem::size_of::<T>();
+    // Heads: each lane steps to its first sample with an aligned x output
+    // (the lanes interleaved, so their dependency chains overlap).
+    let mut k = [k0; AB_LANES];
+    for l in 0..AB_LANES {
+        // Slices of f32/f64 are aligned to their element size, so the
+        // misalignment is a whole number of elements.
+        let addr = xs[l].as_ptr() as usize + k0 * std::mem::size_of::<T>();
+        k[l] = k0 + ((bytes - addr % bytes) % bytes) / std::mem::size_of::<T>();
+    }
+    scalar_steps(c, &mut x, &mut v, &z, &mut xs, &mut vs, [k0; AB_LANES], k);
+    let aligned =
+        |p: *const T, at: usize| (p as usize + at * std::mem::size_of::<T>()).is_multiple_of(bytes);
+    let x_aligned: [bool; AB_LANES] = std::array::from_fn(|l| aligned(xs[l].as_ptr(), k[l]));
+    let v_aligned: [bool; AB_LANES] = std::array::from_fn(|l| aligned(vs[l].as_ptr(), k[l]));
+    let blocks = k.iter().map(|&kl| (n - kl) / sb).min().unwrap_or(0);
+    let lane = |f: fn(&AbConst) -> f64| {
+        _mm512_set_pd(
+            f(&c[7]),
+            f(&c[6]),
+            f(&c[5]),
+            f(&c[4]),
+            f(&c[3]),
+            f(&c[2]),
+            f(&c[1]),
+            f(&c[0]),
+        )
+    };
+    let ct = lane(|c| c.t);
+    let calpha = lane(|c| c.alpha);
+    let coma = lane(|c| c.one_minus_alpha);
+    let cg2 = lane(|c| c.g2);
+    let one = _mm512_set1_pd(1.0);
+    // SAFETY (loads): x, v are plain arrays of 8 f64.
+    let mut xv = unsafe { _mm512_loadu_pd(x.as_ptr()) };
+    let mut vv = unsafe { _mm512_loadu_pd(v.as_ptr()) };
+    let zero = _mm512_setzero_pd();
+    for b in 0..blocks {
+        let mut xbuf = [[zero; W]; 2];
+        let mut vbuf = [[zero; W]; 2];
+        for h in 0..sb / W {
+            let mut rows = [zero; W];
+            for l in 0..AB_LANES {
+                let at = k[l] + b * sb + h * W;
+                if let Some((dz, dout)) = ahead {
+                    prefetch(z[l].as_ptr().wrapping_add(dz + at));
+                    if !nt {
+                        prefetch(xs[l].as_ptr().wrapping_add(dout + at));
+                        prefetch(vs[l].as_ptr().wrapping_add(dout + at));
+                    }
+                }
+                // SAFETY: at + W <= k[l] + blocks * sb <= n = z[l].len().
+                rows[l] = unsafe { load8(z[l].as_ptr().add(at)) };
+            }
+            transpose8(&mut rows);
+            let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
+            for j in 0..W {
+                let zj = rows[j];
+                let xp = _mm512_fmadd_pd(ct, vv, xv);
+                let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
+                let zz = _mm512_maskz_mov_pd(valid, zj);
+                let c1 = _mm512_mask_blend_pd(valid, one, coma);
+                let g = _mm512_maskz_mov_pd(valid, cg2);
+                let w = _mm512_fmadd_pd(g, zz, vv);
+                xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(calpha, zz));
+                vv = _mm512_fnmadd_pd(g, xp, w);
+                xo[j] = xv;
+                vo[j] = vv;
+            }
+            transpose8(xo);
+            transpose8(vo);
+        }
+        for l in 0..AB_LANES {
+            let at = k[l] + b * sb;
+            // SAFETY: at + sb <= n = xs[l].len() = vs[l].len(); x stores are
+            // line-aligned by the head (and v stores are streamed only if
+            // aligned).
+            unsafe {
+                store_line(
+                    xs[l].as_mut_ptr().add(at),
+                    xbuf[0][l],
+                    xbuf[1][l],
+                    nt && x_aligned[l],
+                );
+                store_line(
+                    vs[l].as_mut_ptr().add(at),
+                    vbuf[0][l],
+                    vbuf[1][l],
+                    nt && v_aligned[l],
+                );
+            }
+        }
+    }
+    if nt {
+        _mm_sfence();
+    }
+    // SAFETY: x, v are plain arrays of 8 f64.
+    unsafe {
+        _mm512_storeu_pd(x.as_mut_ptr(), xv);
+        _mm512_storeu_pd(v.as_mut_ptr(), vv);
+    }
+    // Tails.
+    let start: [usize; AB_LANES] = std::array::from_fn(|l| k[l] + blocks * sb);
+    scalar_steps(
+        c,
+        &mut x,
+        &mut v,
+        &z,
+        &mut xs,
+        &mut vs,
+        start,
+        [n; AB_LANES],
+    );
+    *x_out = x;
+    *v_out = v;
+}
+
+/// Scalar steps of every lane `l` over samples `from[l]..to[l]`, the lanes
+/// interleaved (step `s` of every lane, then step `s + 1`).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+#[target_feature(enable = "fma")]
+fn scalar_steps<T: IoFloat>(
+    c: &[AbConst; AB_LANES],
+    x: &mut [f64; AB_LANES],
+    v: &mut [f64; AB_LANES],
+    z: &[&[T]; AB_LANES],
+    xs: &mut [&mut [T]; AB_LANES],
+    vs: &mut [&mut [T]; AB_LANES],
+    from: [usize; AB_LANES],
+    to: [usize; AB_LANES],
+) {
+    let most = (0..AB_LANES)
+        .map(|l| to[l].saturating_sub(from[l]))
+        .max()
+        .unwrap_or(0);
+    for s in 0..most {
+        for l in 0..AB_LANES {
+            let kk = from[l] + s;
+            if kk < to[l] {
+                let (x1, v1, _) = ab_step::<true>(&c[l], x[l], v[l], z[l][kk].to_f64());
+                x[l] = x1;
+                v[l] = v1;
+                xs[l][kk] = T::from_f64(x1);
+                vs[l][kk] = T::from_f64(v1);
+            }
+        }
+    }
+}
+
+/// Whether [`ab_lanes8`] handles `T` and samples `k0..n` (rows long enough
+/// for the vector loop to pay).
+pub(super) fn fits<T: 'static>(k0: usize, n: usize) -> bool {
+    (is_f64::<T>() || is_f32::<T>()) && n >= k0 + 32
+}
+
+// ---------------------------------------------------------------------------
+// The general kernel: GEN_LANES = 4 tracks in the 4 f64 slots of an AVX2
+// register.
+// ---------------------------------------------------------------------------
+
+/// Whether this CPU runs the AVX2 general lanes (checked once; the same
+/// `ABKIT_DISABLE_SIMD` switch as [`available`]).
+pub(super) fn avx2_available() -> bool {
+    use std::sync::OnceLock;
+    static OK: OnceLock<bool> = OnceLock::new();
+    *OK.get_or_init(|| {
+        !disabled() && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
+    })
+}
+
+/// Four consecutive values at `p`, widened to `f64`.
+///
+/// # Safety
+/// `T` is `f64` or `f32`, `p..p+4` is readable, and AVX is available.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn load4<T: 'static>(p: *const T) -> __m256d {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if is_f64::<T>() {
+            _mm256_loadu_pd(p as *const f64)
+        } else {
+            _mm256_cvtps_pd(_mm_loadu_ps(p as *const f32))
+        }
+    }
+}
+
+/// Store four values at `p`, narrowed to `T` (round to nearest); streamed
+/// past the caches if `nt` (`f64` only).
+///
+/// # Safety
+/// `T` is `f64` or `f32`, `p..p+4` is writable and, if `nt`, aligned to 32
+/// bytes; AVX is available.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn store4<T: 'static>(p: *mut T, v: __m256d, nt: bool) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if is_f64::<T>() {
+            if nt {
+                _mm256_stream_pd(p as *mut f64, v)
+            } else {
+                _mm256_storeu_pd(p as *mut f64, v)
+            }
+        } else {
+            _mm_storeu_ps(p as *mut f32, _mm256_cvtpd_ps(v))
+        }
+    }
+}
+
+/// In-place transpose of the 4 x 4 matrix whose rows are `r`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn transpose4(r: &mut [__m256d; 4]) {
+    let t0 = _mm256_unpacklo_pd(r[0], r[1]);
+    let t1 = _mm256_unpackhi_pd(r[0], r[1]);
+    let t2 = _mm256_unpacklo_pd(r[2], r[3]);
+    let t3 = _mm256_unpackhi_pd(r[2], r[3]);
+    r[0] = _mm256_permute2f128_pd::<0x20>(t0, t2);
+    r[1] = _mm256_permute2f128_pd::<0x20>(t1, t3);
+    r[2] = _mm256_permute2f128_pd::<0x31>(t0, t2);
+    r[3] = _mm256_permute2f128_pd::<0x31>(t1, t3);
+}
+
+/// The four general lanes over samples `k0..n`: `rows[l]` holds lane `l`'s
+/// measurements (`n * M` values, sample-major), `group[l].2.states[i]` its
+/// outputs, `x[l]` its state (updated). Each lane first steps (scalar) to a
+/// sample where its first output row is aligned to a cache line (lanes are
+/// independent tracks, so they may be at different samples); then blocks of
+/// 8 samples: per half-block each lane loads `4 M` consecutive values, 4 x 4
+/// transposes give per-sample vectors across the lanes, the steps run in
+/// vectors (both the update `A x + K z` and the coast `Phi x` are computed,
+/// and blended per lane on "every component valid"), and transposes give
+/// the rows back, stored as whole lines (non-temporal if `nt`, for aligned
+/// `f64` rows). Each slot does exactly the scalar `gen_step` arithmetic (same
+/// FMAs, same order), so results are bit-identical to the scalar lanes.
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA ([`avx2_available`]).
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    k0: usize,
+    n: usize,
+    rows: [&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
+    const L: usize = GEN_LANES;
+    const B: usize = 2 * L;
+    let size = std::mem::size_of::<T>();
+    let ok = gen_fits::<T>(M)
+        && group.len() == L
+        && rows.iter().all(|r| r.len() >= n * M)
+        && group
+            .iter()
+            .all(|j| j.2.states.iter().all(|s| s.len() >= n))
+        && n >= k0 + 4 * B;
+    let mut k = [k0; L];
+    if ok {
+        for l in 0..L {
+            let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
+            k[l] = k0 + ((64 - addr % 64) % 64) / size;
+        }
+    } else {
+        k = [n; L];
+    }
+    gen_scalar_steps(cs, xs, &rows, group, [k0; L], k);
+    let blocks = k
+        .iter()
+        .map(|&kl| n.saturating_sub(kl) / B)
+        .min()
+        .unwrap_or(0);
+    let stream: [[bool; N]; L] = std::array::from_fn(|l| {
+        std::array::from_fn(|i| {
+            nt && is_f64::<T>()
+                && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
+        })
+    });
+    let v4 =
+        |f: &dyn Fn(&GenConst<N, M>) -> f64| _mm256_set_pd(f(cs[3]), f(cs[2]), f(cs[1]), f(cs[0]));
+    let a: [[__m256d; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.a[i][j])));
+    let phi: [[__m256d; N]; N] =
+        std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.phi[i][j])));
+    let kk: [[__m256d; M]; N] =
+        std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.k[i][j])));
+    let mut x: [__m256d; N] =
+        std::array::from_fn(|i| _mm256_set_pd(xs[3][i], xs[2][i], xs[1][i], xs[0][i]));
+    let zero = _mm256_setzero_pd();
+    for b in 0..blocks {
+        if let Some((dz, dout)) = ahead {
+            for l in 0..L {
+                let at = k[l] + b * B;
+                prefetch(rows[l].as_ptr().wrapping_add(dz + at * M));
+                if !nt {
+                    for i in 0..N {
+                        prefetch(group[l].2.states[i].as_ptr().wrapping_add(dout + at));
+                    }
+                }
+            }
+        }
+        let mut outv = [[zero; B]; N];
+        for h in 0..2 {
+            // zs[s][c]: component c of each lane's sample k[l] + b B + h L + s.
+            let mut zs = [[zero; M]; L];
+            for g in 0..M {
+                let mut r: [__m256d; L] = std::array::from_fn(|l| {
+                    let at = (k[l] + b * B + h * L) * M + g * L;
+                    // SAFETY: at + L <= (k[l] + (b + 1) B) M <= n M <= rows[l].len().
+                    unsafe { load4(rows[l].as_ptr().add(at)) }
+                });
+                transpose4(&mut r);
+                for (i, ri) in r.iter().enumerate() {
+                    let idx = g * L + i;
+                    zs[idx / M][idx % M] = *ri;
+                }
+            }
+            for (s, zsv) in zs.iter().enumerate() {
+                let mut valid = _mm256_cmp_pd::<_CMP_ORD_Q>(zsv[0], zsv[0]);
+                for zc in zsv.iter().skip(1) {
+                    valid = _mm256_and_pd(valid, _mm256_cmp_pd::<_CMP_ORD_Q>(*zc, *zc));
+                }
+                let xn: [__m256d; N] = std::array::from_fn(|i| {
+                    let mut u = _mm256_mul_pd(kk[i][0], zsv[0]);
+                    for j in 1..M {
+                        u = _mm256_fmadd_pd(kk[i][j], zsv[j], u);
+                    }
+                    for j in 0..N {
+                        u = _mm256_fmadd_pd(a[i][j], x[j], u);
+                    }
+                    let mut p = zero;
+                    for j in 0..N {
+                        p = _mm256_fmadd_pd(phi[i][j], x[j], p);
+                    }
+                    _mm256_blendv_pd(p, u, valid)
+                });
+                x = xn;
+                for i in 0..N {
+                    outv[i][h * L + s] = x[i];
+                }
+            }
+        }
+        for (i, ov) in outv.iter().enumerate() {
+            let mut lo: [__m256d; L] = std::array::from_fn(|s| ov[s]);
+            let mut hi: [__m256d; L] = std::array::from_fn(|s| ov[L + s]);
+            transpose4(&mut lo);
+            transpose4(&mut hi);
+            for l in 0..L {
+                let p = group[l].2.states[i].as_mut_ptr();
+                let at = k[l] + b * B;
+                // SAFETY: at + B <= n <= states[i].len(); streamed rows are
+                // aligned to 64 bytes at `at` (checked in `stream`).
+                unsafe {
+                    store4(p.add(at), lo[l], stream[l][i]);
+                    store4(p.add(at + L), hi[l], stream[l][i]);
+                }
+            }
+        }
+    }
+    if nt {
+        _mm_sfence();
+    }
+    for i in 0..N {
+        let mut t = [0.0; L];
+        // SAFETY: t is a plain array of 4 f64.
+        unsafe { _mm256_storeu_pd(t.as_mut_ptr(), x[i]) };
+        for l in 0..L {
+            xs[l][i] = t[l];
+        }
+    }
+    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * B).min(n));
+    gen_scalar_steps(cs, xs, &rows, group, from, [n; L]);
+}
+
+/// Scalar steps of every general lane `l` over samples `from[l]..to[l]`,
+/// the lanes interleaved.
+#[inline]
+#[target_feature(enable = "fma")]
+fn gen_scalar_steps<T: IoFloat, const N: usize, const M: usize>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    rows: &[&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    from: [usize; GEN_LANES],
+    to: [usize; GEN_LANES],
+) {
+    let most = (0..GEN_LANES)
+        .map(|l| to[l].saturating_sub(from[l]))
+        .max()
+        .unwrap_or(0);
+    for s in 0..most {
+        for l in 0..GEN_LANES.min(group.len()) {
+            let k = from[l] + s;
+            if k < to[l] {
+                let zk: [f64; M] = std::array::from_fn(|j| rows[l][k * M + j].to_f64());
+                xs[l] = gen_step::<N, M, true>(cs[l], &xs[l], &zk);
+                let o = &mut group[l].2;
+                for i in 0..N {
+                    o.states[i][k] = T::from_f64(xs[l][i]);
+                }
+            }
+        }
+    }
+}
+
+/// Whether [`gen_lanes4`] handles `T` and `M`.
+pub(super) fn gen_fits<T: 'static>(m: usize) -> bool {
+    (is_f64::<T>() || is_f32::<T>()) && (m == 1 || m == 2)
+}
