@@ -73,7 +73,7 @@ pub struct Samples<'a, T> {
 impl<'a, T: Copy> Samples<'a, T> {
     /// A contiguous flat `(n, m)` array.
     pub fn flat(data: &'a [T], m: usize) -> Result<Self> {
-        if m == 0 || data.len() % m != 0 {
+        if m == 0 || !data.len().is_multiple_of(m) {
             return Err(Error::Shape(format!(
                 "buffer of {} elements is not a multiple of m = {m}",
                 data.len()

@@ -92,7 +92,7 @@ fn parse_law(kind: &str, params: &[f64], width: usize) -> PyResult<Law> {
             return Err(PyValueError::new_err(format!("unknown gain law {kind:?}")));
         }
     };
-    if need == 0 || params.is_empty() || params.len() % need != 0 {
+    if need == 0 || params.is_empty() || !params.len().is_multiple_of(need) {
         return Err(PyValueError::new_err(
             "gain law parameters have the wrong size",
         ));
@@ -214,7 +214,7 @@ fn run_typed<
 
 fn constant_laws<const N: usize, const M: usize>(p: &[f64]) -> PyResult<Vec<Constant<N, M>>> {
     let w = N * N + N * M;
-    if p.is_empty() || p.len() % w != 0 {
+    if p.is_empty() || !p.len().is_multiple_of(w) {
         return Err(PyValueError::new_err("Phi, K sizes do not match n, m"));
     }
     Ok(p.chunks_exact(w)
@@ -372,7 +372,7 @@ pub(crate) fn filter_tracks_py<'py>(
     // Alpha-beta smoother: rows (kind, p1..p4): kind 0 = per-dt design
     // (p1 = sigma_w / sigma_v), 1 = fixed normalised gain A_N (p1..p4).
     let ab_back = || -> PyResult<Vec<AbBackward>> {
-        if sp.is_empty() || sp.len() % 5 != 0 {
+        if sp.is_empty() || !sp.len().is_multiple_of(5) {
             return Err(PyValueError::new_err(
                 "alpha-beta smoother parameters have the wrong size",
             ));
