@@ -5,6 +5,12 @@ the limits of, with a Rust core.
 
 Modules
 -------
+frame
+    Filter long-format pandas/polars DataFrames (one row per report);
+    needs ``abkit[frame]``.
+dask
+    Scale-out on Dask: dask arrays and Dask DataFrames; needs
+    ``abkit[dask]``.
 abg
     Near-optimal alpha-beta-gamma filters (Chen & Chui): gains from noise
     and back, coloured measurement noise, decoupled recursive forms.
@@ -27,6 +33,7 @@ plot
 """
 
 from . import abg, alphabeta, filters, kalman, riccati, singer
+from . import dask, frame  # light: pandas, polars and dask are imported when used
 from ._abkit import __version__
 from ._errors import AccuracyWarning
 from .alphabeta import AlphaBeta
@@ -43,7 +50,9 @@ from .kalman import KalmanFilter
 __all__ = [
     "abg",
     "alphabeta",
+    "dask",
     "filters",
+    "frame",
     "kalman",
     "riccati",
     "singer",

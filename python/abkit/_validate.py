@@ -21,6 +21,7 @@ __all__ = [
     "check_representable",
     "broadcast_shape",
     "check_tracks_finite",
+    "aligned_state",
 ]
 
 
@@ -180,3 +181,9 @@ def check_tracks_finite(name: str, z3: np.ndarray, x: np.ndarray, started: np.nd
         f"the estimates of track {i} overflowed float64: {name} values up to {big:.3g} are too large "
         f"for this filter; rescale {name}"
     )
+def aligned_state(state: dict) -> dict:
+    """An object's pickled ``__dict__`` with every array C-contiguous and
+    aligned (``__setstate__`` helper): arrays rebuilt from out-of-band pickle
+    buffers, as dask.distributed sends them, may be misaligned, and the Rust
+    bindings take aligned contiguous arrays only."""
+    return {k: np.require(v, requirements=("C", "A")) if isinstance(v, np.ndarray) else v for k, v in state.items()}

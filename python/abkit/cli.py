@@ -8,6 +8,8 @@ abkit design abg ...
 abkit design singer ...
     Near-optimal alpha-beta-gamma design (Chen & Chui) from the noise or the
     tracking index, or analysis of given gains.
+abkit run INPUT -o OUTPUT ...
+    Filter a file of tracks (CSV, Parquet, .npy, .npz); see ``abkit run --help``.
 abkit demo
     Manoeuvring targets simulated, filtered and smoothed with alpha-beta,
     alpha-beta-gamma and Singer filters designed from the scenario's noise:
@@ -274,6 +276,10 @@ def _parser() -> argparse.ArgumentParser:
     from . import _cli_bench
 
     _cli_bench.add_parser(sub, _positive_int)
+
+    from . import _cli_run
+
+    _cli_run.add_parser(sub)
     return p
 
 

@@ -46,7 +46,7 @@ import numpy as np
 
 from . import _abkit
 from ._errors import perturbation_estimate, warn_accuracy
-from ._validate import as_float_array, check_positive, check_representable, check_tracks_finite
+from ._validate import aligned_state, as_float_array, check_positive, check_representable, check_tracks_finite
 
 __all__ = [
     "FixedGainFilter",
@@ -331,6 +331,10 @@ class FixedGainFilter:
             self._set_transient(transient, P0, Q, R, x0)
         elif transient is not None:
             raise ValueError("internal: subclasses configure transient themselves")
+
+    def __setstate__(self, state: dict) -> None:
+        # unpickling (e.g. on a dask worker): arrays aligned for the kernels
+        self.__dict__.update(aligned_state(state))
 
     # -- model ---------------------------------------------------------------
     @property

@@ -42,7 +42,7 @@ from typing import Any, NamedTuple, Optional, Tuple
 import numpy as np
 
 from . import _abkit
-from ._validate import as_float_array, check_tracks_finite
+from ._validate import aligned_state, as_float_array, check_tracks_finite
 from .filters import prepare_z
 
 __all__ = ["KalmanFilter", "KalmanResult", "GainSequence", "gain_sequence"]
@@ -194,6 +194,10 @@ class KalmanFilter:
             if x.ndim != 2 or x.shape[1] != self.n or not np.all(np.isfinite(x)):
                 raise ValueError(f"x0 must be finite with shape ({self.n},) or (n_tracks, {self.n}), got {np.shape(x0)}")
         self.x0 = np.ascontiguousarray(x, dtype=np.float64)
+
+    def __setstate__(self, state: dict) -> None:
+        # unpickling (e.g. on a dask worker): arrays aligned for the kernels
+        self.__dict__.update(aligned_state(state))
 
     def gain_sequence(self, n: int) -> GainSequence:
         """:func:`gain_sequence` of this filter's model."""
