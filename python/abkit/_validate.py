@@ -6,7 +6,7 @@ offending value (and its index for arrays).
 
 from __future__ import annotations
 
-from typing import Any, Sequence, Tuple
+from typing import Any, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -96,23 +96,55 @@ def broadcast(names: Sequence[str], arrays: Sequence[np.ndarray]) -> Tuple[Tuple
     return shape, [np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in b]
 
 
-def as_matrix(name: str, value: Any) -> np.ndarray:
-    """A real 2-D float64 matrix: scalars become 1x1; other ranks are rejected.
+def as_matrix(
+    name: str,
+    value: Any,
+    shape: Optional[Tuple[int, int]] = None,
+    *,
+    symmetric: bool = False,
+    psd: bool = False,
+    pd: bool = False,
+) -> np.ndarray:
+    """A real, finite 2-D float64 matrix (C-contiguous): the one matrix check
+    of every entry point.
 
-    Raises ``TypeError`` for non-real input, ``ValueError`` (naming ``name``)
-    for the wrong rank, an empty matrix or NaN/Inf entries.
+    Without ``shape``: scalars become 1x1, other ranks and empty matrices are
+    rejected. With ``shape``: scalars (for 1x1) and vectors (for one row)
+    are reshaped, any other shape is rejected. ``symmetric``, ``psd``,
+    ``pd`` add those checks (relative tolerances ``1e-12``).
+
+    Raises ``TypeError`` for non-real input, ``ValueError`` (naming
+    ``name``) for the wrong rank or shape, an empty matrix, NaN/Inf entries,
+    asymmetry or a negative (non-positive for ``pd``) eigenvalue.
     """
     arr = as_float_array(name, value)
-    if arr.ndim == 0:
-        arr = arr.reshape(1, 1)
-    if arr.ndim != 2:
-        raise ValueError(f"{name} must be a 2-D matrix, got an array of shape {arr.shape}")
-    if arr.size == 0:
-        raise ValueError(f"{name} must not be empty (n = 0), got shape {arr.shape}")
+    if shape is None:
+        if arr.ndim == 0:
+            arr = arr.reshape(1, 1)
+        if arr.ndim != 2:
+            raise ValueError(f"{name} must be a 2-D matrix, got an array of shape {arr.shape}")
+        if arr.size == 0:
+            raise ValueError(f"{name} must not be empty (n = 0), got shape {arr.shape}")
+    else:
+        if arr.ndim < 2 and shape == (1, 1) and arr.size == 1:
+            arr = arr.reshape(1, 1)
+        if arr.ndim == 1 and shape[0] == 1:
+            arr = arr.reshape(1, -1)
+        if arr.shape != tuple(shape):
+            raise ValueError(f"{name} must have shape {tuple(shape)}, got {arr.shape}")
     bad = ~np.isfinite(arr)
     if bad.any():
         raise ValueError(f"{name} must be finite (no NaN or Inf entries), {_where(arr, bad)}")
-    return np.ascontiguousarray(arr)
+    if symmetric and not np.allclose(arr, arr.T, rtol=1e-12, atol=1e-14 * max(1.0, float(np.max(np.abs(arr))))):
+        raise ValueError(f"{name} must be symmetric, got max |{name} - {name}.T| = {float(np.max(np.abs(arr - arr.T))):.3g}")
+    if psd or pd:
+        w = np.linalg.eigvalsh(0.5 * (arr + arr.T))
+        tol = 1e-12 * max(1.0, float(np.max(np.abs(w))))
+        if pd and not np.all(w > 0):
+            raise ValueError(f"{name} must be positive definite (smallest eigenvalue {float(w.min()):.3g})")
+        if psd and np.any(w < -tol):
+            raise ValueError(f"{name} must be positive semi-definite (smallest eigenvalue {float(w.min()):.3g})")
+    return np.ascontiguousarray(arr, dtype=np.float64)
 
 
 def check_shape(name: str, arr: np.ndarray, shape: Tuple[int, int]) -> None:

@@ -46,7 +46,7 @@ import numpy as np
 
 from . import _abkit
 from ._errors import perturbation_estimate, warn_accuracy
-from ._validate import aligned_state, as_float_array, check_positive, check_representable, check_tracks_finite
+from ._validate import aligned_state, as_float_array, as_matrix, check_positive, check_representable, check_tracks_finite
 
 __all__ = [
     "FixedGainFilter",
@@ -218,15 +218,6 @@ def prepare_z(z: Any, m: int, name: str = "z") -> Tuple[np.ndarray, Tuple[int, .
     return z3, z3.shape[:2], single
 
 
-def _as_matrix(name: str, value: Any, shape: Tuple[int, ...]) -> np.ndarray:
-    a = as_float_array(name, value)
-    if a.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be finite")
-    return a
-
-
 class FixedGainFilter:
     r"""A general fixed-gain filter ``x = Phi x + K (z - H Phi x)``.
 
@@ -369,8 +360,8 @@ class FixedGainFilter:
         Returns predicted, filtered and (RTS) smoothed covariances; see
         :class:`SteadyStateCovariance`.
         """
-        q = _as_matrix("Q", Q, (self.n, self.n))
-        r = _as_matrix("R", R, (self.m, self.m))
+        q = as_matrix("Q", Q, (self.n, self.n))
+        r = as_matrix("R", R, (self.m, self.m))
         if self.n_params != 1:
             raise ValueError("covariances() needs a filter with one parameter set")
         return _steady_covariance(self._phi[0], self._h[0], self._k[0], q, r)

@@ -42,7 +42,7 @@ from typing import Any, NamedTuple, Optional, Tuple
 import numpy as np
 
 from . import _abkit
-from ._validate import aligned_state, as_float_array, check_tracks_finite
+from ._validate import aligned_state, as_float_array, as_matrix, check_tracks_finite
 from .filters import prepare_z
 
 __all__ = ["KalmanFilter", "KalmanResult", "GainSequence", "gain_sequence"]
@@ -61,25 +61,7 @@ class GainSequence(NamedTuple):
 
 
 def _matrix(name: str, value: Any, shape: Tuple[int, int], *, symmetric: bool = False, psd: bool = False, pd: bool = False) -> np.ndarray:
-    a = as_float_array(name, value)
-    if a.ndim < 2 and shape in ((1, 1),):
-        a = a.reshape(1, 1)
-    if a.ndim == 1 and shape[0] == 1:
-        a = a.reshape(1, -1)
-    if a.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be finite")
-    if symmetric and not np.allclose(a, a.T, rtol=1e-12, atol=1e-14 * max(1.0, float(np.max(np.abs(a))))):
-        raise ValueError(f"{name} must be symmetric")
-    if psd or pd:
-        w = np.linalg.eigvalsh(0.5 * (a + a.T))
-        tol = 1e-12 * max(1.0, float(np.max(np.abs(w))))
-        if pd and not np.all(w > 0):
-            raise ValueError(f"{name} must be positive definite (smallest eigenvalue {float(w.min()):.3g})")
-        if psd and np.any(w < -tol):
-            raise ValueError(f"{name} must be positive semi-definite (smallest eigenvalue {float(w.min()):.3g})")
-    return np.ascontiguousarray(a, dtype=np.float64)
+    return as_matrix(name, value, shape, symmetric=symmetric, psd=psd, pd=pd)
 
 
 def _model(F: Any, H: Any, Q: Any, R: Any, P0: Any) -> Tuple[int, int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
