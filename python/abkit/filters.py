@@ -192,6 +192,26 @@ class FilterResult:
         return f"FilterResult(states={self.states.shape} {self.states.dtype}, residuals={'yes' if self.residuals is not None else 'no'})"
 
 
+#: Fresh outputs at least this big (the kernels' non-temporal-store
+#: threshold) are faulted in before filtering; see :func:`fresh_output`.
+_PREFAULT_BYTES = 64 << 20
+
+
+def fresh_output(shape: Tuple[int, ...], dtype: Any) -> np.ndarray:
+    """A new output array for the kernels. Big outputs are written by the
+    kernels with non-temporal stores, which are slow on pages that are not
+    mapped yet (every first touch of a page is a fault in the middle of a
+    streamed line): those pages are faulted in first, by touching one
+    element per 4 KiB page (the same cost as any first use of fresh memory),
+    so filtering without ``out=`` costs filtering with ``out=`` plus the
+    allocation."""
+    o = np.empty(shape, dtype=dtype)
+    if o.nbytes >= _PREFAULT_BYTES:
+        flat = o.reshape(-1)
+        flat[:: max(1, 4096 // o.itemsize)] = 0
+    return o
+
+
 def prepare_z(z: Any, m: int, name: str = "z") -> Tuple[np.ndarray, Tuple[int, ...], bool]:
     """Validate measurements (named ``name`` in errors) and view them as (n_tracks, n_samples, m) without copying."""
     if not isinstance(z, np.ndarray):
@@ -430,7 +450,7 @@ class FixedGainFilter:
     def _out(self, out: Any, z: np.ndarray, z3: np.ndarray, shape: Tuple[int, ...]) -> np.ndarray:
         want = (self.n,) + shape
         if out is None:
-            return np.empty(want, dtype=z.dtype)
+            return fresh_output(want, z.dtype)
         if not isinstance(out, np.ndarray):
             raise TypeError(f"out must be a numpy array, got {type(out).__name__}")
         if out.shape != want or out.dtype != z.dtype:

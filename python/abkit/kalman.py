@@ -43,7 +43,7 @@ import numpy as np
 
 from . import _abkit
 from ._validate import aligned_state, as_float_array, as_matrix, check_tracks_finite
-from .filters import prepare_z
+from .filters import fresh_output, prepare_z
 
 __all__ = ["KalmanFilter", "KalmanResult", "GainSequence", "gain_sequence"]
 
@@ -196,7 +196,7 @@ class KalmanFilter:
         shape = (n_samples,) if single else (n_tracks, n_samples)
         want = (self.n,) + shape
         if out is None:
-            o = np.empty(want, dtype=z3.dtype)
+            o = fresh_output(want, z3.dtype)
         else:
             if not isinstance(out, np.ndarray) or out.shape != want or out.dtype != z3.dtype:
                 raise ValueError(f"out must be an array of shape {want} and dtype {z3.dtype}")
