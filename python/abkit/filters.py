@@ -635,7 +635,14 @@ class FixedGainFilter:
         self._kernel(z3, packed, init_mode, out3, res3, None if threads is None else int(threads), sgain, None if lag is None else int(lag))
         if not self.allow_unstable:
             ph = packed[:, _NMAX]
-            check_tracks_finite("z", z3, np.where((ph == 1)[:, None], packed[:, :1], packed[:, : self.n]), ph > 0)
+            # One cheap reduction first (NaN/Inf propagate through the sum; a
+            # half-started track's state is its position alone); the exact
+            # check only if some sum is not finite (also when finite values
+            # overflow the sum).
+            with np.errstate(over="ignore", invalid="ignore"):
+                s = np.where(ph == 1, packed[:, 0], packed[:, : self.n].sum(axis=1))
+            if not np.isfinite(s[ph > 0]).all():
+                check_tracks_finite("z", z3, np.where((ph == 1)[:, None], packed[:, :1], packed[:, : self.n]), ph > 0)
         residuals = None
         if res3 is not None:
             rshape = shape + ((self.m,) if self.m > 1 else ())
