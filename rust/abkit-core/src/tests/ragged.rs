@@ -1,5 +1,5 @@
 use super::*;
-use crate::irregular::{AbDesign, AbFixed, AbgFixed};
+use crate::irregular::{AbDesign, AbFixed, AbgDesign, AbgFixed};
 
 fn ab_filter(laws: &[AbDesign]) -> TrackFilter<'_, AbDesign, 2, 1> {
     TrackFilter {
@@ -295,13 +295,31 @@ fn steps_whose_gains_overflow_are_errors_naming_t() {
 
 #[test]
 fn steps_without_a_design_are_errors_naming_t() {
-    // the design's tracking index ratio * dt^2 underflows to 0 at dt = 1e-300
-    let e = run(
-        &[0, 2],
-        &[1.0, 2.0],
-        Some(&[0.0, 1e-300]),
+    // sigma_a h^4 / sigma_m underflows at h = 1e-300: the design has no gains there
+    let laws = [AbgDesign::new(0.0, 0.0, 0.1, 1.0).unwrap()];
+    let f = TrackFilter {
+        laws: &laws,
+        h: [[1.0, 0.0, 0.0]],
+        h_pinv: [[1.0], [0.0], [0.0]],
+    };
+    let t = [0.0, 1e-300];
+    let z = [1.0, 2.0];
+    let mut st = vec![TrackState::default()];
+    let mut counts = vec![[0; 2]];
+    let mut out = vec![0.0; 6];
+    let ts = Samples::flat(&t, 1).unwrap();
+    let e = filter_tracks(
+        &f,
         &opts(Init::First, None, false),
+        &[0, 2],
+        &Samples::flat(&z, 1).unwrap(),
+        Some(&ts),
+        &mut st,
+        &mut out,
+        None,
+        &mut counts,
         false,
+        &NoPost,
     )
     .err()
     .unwrap();
@@ -322,8 +340,8 @@ fn smoothing_steps_whose_backward_gain_overflows_are_errors_naming_t() {
         t_nominal: 1.0,
         lag: None,
     };
-    let mut x = vec![0.0, 1.0];
-    let mut v = vec![0.0, 1.0];
+    let mut x = [0.0, 1.0];
+    let mut v = [0.0, 1.0];
     let t = [0.0, 1e-300];
     let tf = |k: usize| t[k];
     let e = PostTrack::<f64, 2>::post(&post, 0, &mut [&mut x[..], &mut v[..]], Some(&tf), None)
