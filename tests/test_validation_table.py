@@ -47,6 +47,9 @@ PARAM = "param"  # real scalar or array, broadcast element-wise with the others
 PARAM1D = "param1d"  # real scalar or 1-D (one value per track)
 MATRIX = "matrix"  # real matrix of a fixed shape (or a stack of them)
 DATA = "data"  # measurements: float32/float64 only, NaN = missed detection
+SCALAR = "scalar"  # a real scalar (0-d) parameter
+TIME = "time"  # timestamps t= of a run: real, finite, of the sample shape of z
+OFFSETS = "offsets"  # offsets= of a ragged run: 1-D integers, 0 .. N, non-decreasing
 
 SCALE = 2.0**996  # about 6.7e299; its reciprocal about 1.5e-300
 
@@ -78,6 +81,10 @@ H2 = np.array([[1.0, 0.0]])
 K2 = np.array([[0.5], [0.2]])
 Q2 = np.array([[0.25, 0.5], [0.5, 1.0]]) * 1e-2
 R1 = np.array([[1.0]])
+TT = np.cumsum(np.random.default_rng(6).uniform(0.5, 1.5, size=Z2.shape), axis=-1)  # timestamps of Z2
+OFF = np.array([0, 40, 65, 120])  # a ragged batch of Z2's 120 samples, flat
+ZF = Z2.reshape(-1).copy()
+TF = np.concatenate([np.cumsum(np.random.default_rng(7).uniform(0.5, 1.5, size=k)) for k in np.diff(OFF)])  # increasing per track
 AB = abkit.AlphaBetaFilter(0.5, 0.2, 1.0)
 ABG3 = abkit.AlphaBetaGammaFilter(0.5, 0.2, 0.02, 1.0)
 FG = abkit.FixedGainFilter(PHI2, H2, K2)
@@ -128,6 +135,8 @@ def _entries() -> List[Entry]:
     s_ov = {("tau", "inf"): "same"}  # tau = inf is the constant-acceleration limit
     add(Entry("singer.model", singer.model, dict(T=_v(0.1, 1, 2, 0.5), tau=_v(1, 10, 5, 20), sigma_m=_v(1, 2, 3, 4)), dict(T=P, tau=P, sigma_m=P), override=s_ov))
     add(Entry("singer.steady_state", singer.steady_state, dict(T=_v(0.1, 1, 2, 0.5), tau=_v(1, 10, 5, 20), sigma_m=_v(1, 2, 3, 4), sigma_pos=_v(1, 1, 10, 0.5)), dict(T=P, tau=P, sigma_m=P, sigma_pos=P), override=s_ov))
+    add(Entry("singer.tracking_filter", singer.tracking_filter, dict(T=1.0, tau=20.0, sigma_m=1.0, sigma_pos=10.0),
+              dict(T=SCALAR, tau=SCALAR, sigma_m=SCALAR, sigma_pos=SCALAR), override=s_ov))
     # -- riccati ----------------------------------------------------------------
     m4 = dict(A=M, B=M, Q=M, R=M)
     add(Entry("riccati.solve_dare", riccati.solve_dare, dict(A=PHI2.T.copy(), B=H2.T.copy(), Q=Q2, R=R1), m4))
@@ -146,6 +155,9 @@ def _entries() -> List[Entry]:
     add(Entry("filters.AlphaBetaFilter", filters.AlphaBetaFilter, dict(alpha=_v(0.5, 0.3, 0.6), beta=_v(0.2, 0.1, 0.3), T=_v(1, 0.5, 2)), dict(alpha=PARAM1D, beta=PARAM1D, T=PARAM1D)))
     add(Entry("filters.AlphaBetaGammaFilter", filters.AlphaBetaGammaFilter, dict(alpha=_v(0.5, 0.3, 0.6), beta=_v(0.2, 0.1, 0.3), gamma=_v(0.02, 0.01, 0.03), T=_v(1, 0.5, 2)), dict(alpha=PARAM1D, beta=PARAM1D, gamma=PARAM1D, T=PARAM1D)))
     add(Entry("filters.AlphaBetaFilter.from_design", lambda T: abkit.AlphaBetaFilter.from_design(DESIGN, T=T), dict(T=_v(1.0, 0.5)), dict(T=PARAM1D)))
+    add(Entry("filters.AlphaBetaFilter.from_noise", filters.AlphaBetaFilter.from_noise, dict(sigma_w=_v(1.0, 3.2), sigma_v=_v(10.0, 32.0), T=_v(1.0, 0.1)), dict(sigma_w=PARAM1D, sigma_v=PARAM1D, T=PARAM1D)))
+    add(Entry("filters.AlphaBetaGammaFilter.from_noise", filters.AlphaBetaGammaFilter.from_noise, dict(sigma_p=0.5, sigma_v=0.2, sigma_a=0.1, sigma_m=1.0, T=1.0),
+              dict(sigma_p=SCALAR, sigma_v=SCALAR, sigma_a=SCALAR, sigma_m=SCALAR, T=SCALAR)))
     for cls, f in (("FixedGainFilter", FG), ("AlphaBetaFilter", AB), ("AlphaBetaGammaFilter", ABG3)):
         n = f.n
         add(Entry(f"filters.{cls}.run", f.run, dict(z=Z2), dict(z=DATA), out=lambda z, n=n: (n,) + z.shape))
@@ -154,12 +166,37 @@ def _entries() -> List[Entry]:
         add(Entry(f"filters.{cls}.covariances", f.covariances, dict(Q=qm, R=R1), dict(Q=M, R=M)))
         add(Entry(f"filters.{cls}.smoother_gain", f.smoother_gain, dict(Q=qm, R=R1), dict(Q=M, R=M)))
         add(Entry(f"filters.{cls}.tracker", f.tracker, dict(n_tracks=2), {}))
+    # the run keywords of docs/tracks.md: timestamps (gains kept and scaled by dt, or the
+    # design at each dt), ragged offsets, both together, smoothing with timestamps
+    ABD = abkit.AlphaBetaFilter.from_noise(1.0, 10.0, 1.0)
+    ABGD3 = abkit.AlphaBetaGammaFilter.from_noise(0.0, 0.0, 0.1, 1.0, 1.0)
+    for tag, f in (("AlphaBetaFilter", AB), ("AlphaBetaGammaFilter", ABG3), ("AlphaBetaFilter[design]", ABD), ("AlphaBetaGammaFilter[design]", ABGD3)):
+        cls, _, design = tag.partition("[")
+        sfx = "design," if design else ""
+        n = f.n
+        add(Entry(f"filters.{cls}.run[{sfx}t]", lambda z, t=TT, f=f, **kw: f.run(z, t=t, **kw), dict(z=Z2, t=TT), dict(z=DATA, t=TIME), out=lambda z, n=n: (n,) + z.shape))
+        add(Entry(f"filters.{cls}.run[{sfx}offsets,t]", lambda z, offsets=OFF, t=TF, f=f, **kw: f.run(z, offsets=offsets, t=t, **kw), dict(z=ZF, offsets=OFF, t=TF), dict(z=DATA, offsets=OFFSETS, t=TIME),
+                  out=lambda z, n=n: (n,) + z.shape))
+    for cls, f in (("FixedGainFilter", FG), ("AlphaBetaFilter", AB)):
+        add(Entry(f"filters.{cls}.run[offsets]", lambda z, offsets=OFF, f=f, **kw: f.run(z, offsets=offsets, **kw), dict(z=ZF, offsets=OFF), dict(z=DATA, offsets=OFFSETS), out=lambda z, n=f.n: (n,) + z.shape))
+    for tag, f in (("", AB), ("design,", ABD)):
+        add(Entry(f"filters.AlphaBetaFilter.smooth[{tag}t]", lambda z, t=TT, f=f, **kw: f.smooth(z, t=t, **kw), dict(z=Z2, t=TT), dict(z=DATA, t=TIME), out=lambda z: (2,) + z.shape))
+        add(Entry(f"filters.AlphaBetaFilter.smooth[{tag}offsets,t]", lambda z, offsets=OFF, t=TF, f=f, **kw: f.smooth(z, offsets=offsets, t=t, **kw), dict(z=ZF, offsets=OFF, t=TF),
+                  dict(z=DATA, offsets=OFFSETS, t=TIME), out=lambda z: (2,) + z.shape))
     add(Entry("filters.FixedGainFilter.run[m=2]", lambda z, **kw: FG2.run(z, init="first", **kw), dict(z=Z3), dict(z=DATA), out=lambda z: (2,) + z.shape[:-1]))
     add(Entry("filters.Tracker", lambda n_tracks: abkit.Tracker(AB, n_tracks=n_tracks), dict(n_tracks=3), {}))
     add(Entry("filters.Tracker.update", lambda z_chunk: abkit.Tracker(AB, n_tracks=3).update(z_chunk), dict(z_chunk=Z2), dict(z_chunk=DATA),
               # a convenience for real-time feeds: integer and bool samples are converted to float64
               override={("z_chunk", "bool"): "same", ("z_chunk", "int"): "same"}))
     add(Entry("filters.Tracker.reset", lambda: abkit.Tracker(AB).reset(), {}, {}))
+    # -- dask (dask's local threaded scheduler: no cluster is started) ---------------
+    add(Entry("dask.run", lambda z: _dask().run(AB, _dask_array(z)).compute(), dict(z=Z2), dict(z=DATA)))
+    add(Entry("dask.run[t]", lambda z, t=TT: _dask().run(ABD, _dask_array(z), t=t).compute(), dict(z=Z2, t=TT), dict(z=DATA, t=TIME)))
+    # a dask DataFrame of frame.filter's input; the per-partition validation is frame.filter's
+    # (FRAME_CASES below; test_dask_filter_frame_delegates_validation shows it reaches the caller)
+    add(Entry("dask.filter_frame", lambda: _dask().filter_frame(_dd().from_pandas(_long_frame().sort_values("id", kind="stable"), npartitions=3, sort=False), id="id", time="t", columns=["x", "y"], filter=AB).compute(), {}, {}))
+    # -- frame (DataFrame input: the DataFrame-specific cases are FRAME_CASES below) ----------
+    add(Entry("frame.filter", lambda: _frame().filter(_long_frame(), id="id", time="t", columns=["x", "y"], filter=AB), {}, {}))
     # -- plot (needs matplotlib) -----------------------------------------------------
     add(Entry("plot.singer_tau_over_T", lambda p2: _plot().singer_tau_over_T(p2), dict(p2=_v(0.01, 0.1, 1.0, 10.0)), dict(p2=P)))
     add(Entry("plot.singer_errors", lambda p2: _closefig(_plot().singer_errors(p2=p2)), dict(p2=_v(0.1, 1.0)), dict(p2=P), override={("p2", "zero-size"): "ValueError"}))
@@ -179,6 +216,36 @@ def _plot() -> Any:
     return importlib.import_module("abkit.plot")
 
 
+def _dask() -> Any:
+    pytest.importorskip("dask.array")
+    return importlib.import_module("abkit.dask")
+
+
+def _dask_array(v: np.ndarray) -> Any:
+    """``v`` as a dask array in two chunks along each axis (explicit chunks:
+    dask cannot size object arrays itself)."""
+    da = pytest.importorskip("dask.array")
+    return da.from_array(v, chunks=tuple(max(1, s // 2) for s in v.shape))
+
+
+def _dd() -> Any:
+    return pytest.importorskip("dask.dataframe")
+
+
+def _frame() -> Any:
+    pytest.importorskip("pandas")
+    return importlib.import_module("abkit.frame")
+
+
+def _long_frame() -> Any:
+    """Z2's three tracks as a long-format pandas DataFrame (one row per report),
+    reports of the tracks interleaved in time order."""
+    pd = pytest.importorskip("pandas")
+    ids = np.repeat(np.array([3, 7, 11]), Z2.shape[1])
+    order = np.argsort(TT.reshape(-1), kind="stable")
+    return pd.DataFrame({"id": ids[order], "t": TT.reshape(-1)[order], "x": Z2.reshape(-1)[order], "y": 2.0 * Z2.reshape(-1)[order]}).reset_index(drop=True)
+
+
 def _closefig(obj: Any) -> None:
     import matplotlib.pyplot as plt
 
@@ -196,6 +263,8 @@ NO_ARRAY_INPUT = {
     "alphabeta.AlphaBeta.to_dict", "alphabeta.AlphaBeta.table",
     "abg.ABG.to_dict", "abg.ABG.table",
     "filters.FilterState.copy",
+    "dask.DaskFilterResult.compute",  # computes a result's lazy arrays (keywords go to dask)
+    "frame.FrameSummary.totals",
 }
 #: Result types: constructed by abkit, not by users (their fields are outputs).
 RESULT_TYPES = {
@@ -204,6 +273,7 @@ RESULT_TYPES = {
     "singer.SingerSteadyState", "riccati.DareSolution", "riccati.KalmanSteadyState",
     "kalman.KalmanResult", "kalman.GainSequence", "filters.FilterResult", "filters.FilterState",
     "plot.FrequencyResponse", "plot.PoleZero", "plot.GainConvergence",
+    "dask.DaskFilterResult", "frame.FrameSummary",
 }
 SUBMODULES = ("alphabeta", "abg", "filters", "kalman", "riccati", "singer", "plot")
 
@@ -284,6 +354,8 @@ def _first(v: np.ndarray, x: float) -> np.ndarray:
 
 
 def _wrong_shape(v: np.ndarray, role: str) -> np.ndarray:
+    if role == OFFSETS:
+        return v[:-1]  # one track short: does not end at N
     if role == DATA:
         return np.zeros(v.shape[:2] + (3,))
     if role == MATRIX:
@@ -294,7 +366,7 @@ def _wrong_shape(v: np.ndarray, role: str) -> np.ndarray:
 #: case -> how the argument is perturbed
 CASES: Dict[str, Callable[[np.ndarray, str], Any]] = {
     "bool": lambda v, r: v.astype(bool),
-    "int": lambda v, r: np.round(v * 4).astype(np.int64) + (r == PARAM),
+    "int": lambda v, r: v.astype(np.int32) if r == OFFSETS else np.round(v * 4).astype(np.int64) + (r == PARAM),
     "complex": lambda v, r: v.astype(np.complex128),
     "object": lambda v, r: v.astype(object),
     "big-endian": lambda v, r: v.astype(">f8"),
@@ -307,12 +379,14 @@ CASES: Dict[str, Callable[[np.ndarray, str], Any]] = {
     "non-contiguous": lambda v, r: _noncontig(v),
     "fortran": lambda v, r: np.asfortranarray(v),
     "read-only": lambda v, r: _readonly(v),
-    "zero-size": lambda v, r: np.zeros(v.shape[:-1] + (0,)) if v.ndim else np.zeros(0),
+    "zero-size": lambda v, r: np.zeros(v.shape[:-1] + (0,), dtype=np.int64 if r == OFFSETS else np.float64) if v.ndim else np.zeros(0),
     "nan": lambda v, r: _first(v, np.nan),
     "inf": lambda v, r: _first(v, np.inf),
     "-inf": lambda v, r: _first(v, -np.inf),
-    "huge": lambda v, r: v * SCALE if r == DATA else np.full_like(v, 1e300),
-    "tiny": lambda v, r: v / SCALE if r == DATA else np.full_like(v, 1e-300),
+    # timestamps: steps dt of about 1e+-300; offsets: beyond int64 as uint64, and negative
+    "huge": lambda v, r: (np.array([0] + [2**64 - 1] * (v.size - 1), dtype=np.uint64) if r == OFFSETS
+                          else v * SCALE if r in (DATA, TIME) else np.full_like(v, 1e300)),
+    "tiny": lambda v, r: v - 1 if r == OFFSETS else v / SCALE if r in (DATA, TIME) else np.full_like(v, 1e-300),
 }
 
 #: role -> case -> expected outcome (see the module docstring)
@@ -337,6 +411,19 @@ EXPECTED: Dict[str, Dict[str, str]] = {
     },
 }
 EXPECTED[PARAM1D] = dict(EXPECTED[PARAM], ndim="ValueError", shape="ValueError")
+EXPECTED[SCALAR] = dict(EXPECTED[PARAM1D], **{"zero-size": "ValueError"})
+# timestamps: real numbers converted to float64 (bool is not a time); a wrong shape, a
+# missing or infinite timestamp is an error naming t; steps dt of about 1e+-300 give
+# estimates finite wherever those of the clean timestamps are, or a ValueError naming t
+EXPECTED[TIME] = dict(EXPECTED[PARAM], bool="TypeError", ndim="ValueError", shape="ValueError", **{"zero-size": "ValueError"},
+                      huge="finite-where-clean-or-ValueError", tiny="finite-where-clean-or-ValueError")
+# offsets: integers only (any integer dtype; floats, even integral ones, are refused)
+EXPECTED[OFFSETS] = {
+    "bool": "TypeError", "int": "same", "complex": "TypeError", "object": "TypeError", "big-endian": "TypeError",
+    "float16": "TypeError", "float32": "TypeError", "ndim": "ValueError", "shape": "ValueError", "negative-stride": "same",
+    "broadcast-view": "ValueError", "non-contiguous": "same", "fortran": "same", "read-only": "same", "zero-size": "ValueError",
+    "nan": "TypeError", "inf": "TypeError", "-inf": "TypeError", "huge": "ValueError", "tiny": "ValueError",
+}
 
 
 def _expected(e: Entry, arg: str, case: str) -> str:
@@ -389,8 +476,8 @@ def _equal(a: Any, b: Any) -> bool:
     return True
 
 
-def _clean(v: Any) -> Any:
-    return np.array(v, dtype=np.float64, copy=True, order="C")
+def _clean(v: Any, role: str = PARAM) -> Any:
+    return np.array(v, dtype=np.int64 if role == OFFSETS else np.float64, copy=True, order="C")
 
 
 def _names(arg: str, msg: str) -> bool:
@@ -436,6 +523,18 @@ def test_validation_table(name: str, arg: str, case: str) -> None:
             if exp == "finite-or-ValueError":
                 assert _all_floats_finite(got), f"{name}({arg}={case}) returned non-finite values silently"
             return
+        if exp == "finite-where-clean-or-ValueError":
+            try:
+                got = e.call(**kw)
+            except ValueError as exc:
+                assert _names(arg, str(exc)), f"message does not name {arg!r}: {exc}"
+                return
+            ref = e.call(**e.args)
+            for a, b in ((got.states, ref.states), (got.residuals, ref.residuals)):
+                if b is not None:
+                    bad_ = np.isfinite(b) & ~np.isfinite(a)
+                    assert not bad_.any(), f"{name}({arg}={case}) gave non-finite estimates silently at {np.argwhere(bad_)[:3].tolist()}"
+            return
         if exp == "scaled":
             s = SCALE if case == "huge" else 1.0 / SCALE
             got = e.call(**kw).states
@@ -453,7 +552,7 @@ def test_validation_table(name: str, arg: str, case: str) -> None:
             return
         assert exp == "same", exp
         try:
-            ref = e.call(**dict(e.args, **{arg: _clean(bad)}))
+            ref = e.call(**dict(e.args, **{arg: _clean(bad, role)}))
         except (ValueError, np.linalg.LinAlgError) as exc:  # e.g. bool/int values outside the domain
             with pytest.raises(type(exc)) as info:
                 e.call(**kw)
@@ -503,3 +602,120 @@ def test_out_argument(name: str, case: str) -> None:
     with pytest.raises((TypeError, ValueError)) as info:
         e.call(z, out=out)
     assert _names("out", str(info.value)), f"message does not name out: {info.value}"
+
+
+# -- the run keywords that are not arrays (docs/tracks.md) ----------------------------
+
+#: (keyword, bad value, exception) for FixedGainFilter.run / smooth; the message must name the keyword
+KEYWORD_CASES = [
+    ("axes", 1, ValueError), ("axes", 4, ValueError), ("axes", 2.0, ValueError), ("axes", "2", ValueError), ("axes", True, ValueError),
+    ("max_gap", 0.0, ValueError), ("max_gap", -1.0, ValueError), ("max_gap", float("nan"), ValueError), ("max_gap", "1", TypeError),
+    ("max_gap", True, TypeError), ("max_gap", np.array([1.0, 2.0]), TypeError), ("max_gap", None, "no-t"),
+    ("on_duplicate", "keep", ValueError), ("on_duplicate", None, ValueError), ("on_duplicate", 1, ValueError),
+]
+
+
+@pytest.mark.parametrize("method", ["run", "smooth"])
+@pytest.mark.parametrize("kw,value,exc", KEYWORD_CASES, ids=[f"{k}={v!r}" for k, v, _ in KEYWORD_CASES])
+def test_run_keywords(method: str, kw: str, value: Any, exc: Any) -> None:
+    call = getattr(AB, method)
+    z = np.stack([Z2, -Z2], axis=-1) if kw == "axes" else Z2
+    if exc == "no-t":  # max_gap without timestamps: nothing to measure a gap with
+        with pytest.raises(ValueError, match="max_gap"):
+            call(Z2, max_gap=3.0)
+        return
+    with pytest.raises((TypeError, ValueError)) as info:
+        call(z, **{kw: value}, **({} if kw == "axes" else {"t": TT}))
+    assert info.type is exc, f"{info.type.__name__}: {info.value}"
+    assert _names(kw, str(info.value)), f"message does not name {kw!r}: {info.value}"
+
+
+# -- frame.filter: the DataFrame-specific bad inputs ----------------------------------
+# (unknown column names, a string id column as a measurement, a non-filter, an existing
+# estimate column and a NaN timestamp are in tests/test_frame.py::test_bad_input)
+
+
+def _set(col: str, row: int, value: Any) -> Callable[[Any], Any]:
+    def f(df: Any) -> Any:
+        df = df.copy()
+        df[col] = df[col].astype(object) if not isinstance(value, float) else df[col]
+        df.loc[row, col] = value
+        return df
+    return f
+
+
+def _retype(col: str, fn: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    def f(df: Any) -> Any:
+        df = df.copy()
+        df[col] = fn(df[col])
+        return df
+    return f
+
+
+#: case -> (change to the DataFrame, keyword changes, exception, words the message must contain, also polars)
+FRAME_CASES: Dict[str, Tuple[Optional[Callable[[Any], Any]], Dict[str, Any], Any, Tuple[str, ...], bool]] = {
+    "columns-int": (None, dict(columns=3), TypeError, ("columns",), True),
+    "columns-none": (None, dict(columns=None), TypeError, ("columns",), True),
+    "columns-empty": (None, dict(columns=[]), ValueError, ("columns",), True),
+    "columns-repeated": (None, dict(columns=["x", "x"]), ValueError, ("columns",), True),
+    "id-none": (None, dict(id=None), TypeError, ("id",), True),
+    "id-list": (None, dict(id=["id"]), TypeError, ("id",), True),
+    "id-is-a-column": (None, dict(columns=["x", "id"]), ValueError, ("id",), True),
+    "time-float": (None, dict(time=1.5), TypeError, ("time",), True),
+    "time-is-id": (None, dict(time="id"), ValueError, ("time",), True),
+    "time-inf": (_set("t", 5, np.inf), {}, ValueError, ("time", "row 5", "inf"), True),
+    "time--inf": (_set("t", 9, -np.inf), {}, ValueError, ("time", "row 9", "inf"), True),
+    "time-strings": (_retype("t", lambda s: s.astype(str)), {}, TypeError, ("time", "'t'"), True),
+    "time-bool": (_retype("t", lambda s: s > 10), {}, TypeError, ("time", "'t'"), True),
+    "time-complex": (_retype("t", lambda s: s.astype(complex)), {}, TypeError, ("time", "'t'"), False),
+    "x-inf": (_set("x", 4, np.inf), {}, ValueError, ("'x'", "row 4"), True),
+    "y--inf": (_set("y", 6, -np.inf), {}, ValueError, ("'y'", "row 6"), True),
+    "x-bool": (_retype("x", lambda s: s > 0), {}, TypeError, ("'x'",), True),
+    "x-strings": (_retype("x", lambda s: s.astype(str)), {}, TypeError, ("'x'",), True),
+    "x-complex": (_retype("x", lambda s: s.astype(complex)), {}, TypeError, ("'x'",), False),
+    "x-object-floats": (_retype("x", lambda s: s.astype(object)), {}, TypeError, ("'x'",), False),
+    "id-missing": (_set("id", 3, np.nan), {}, ValueError, ("id", "row 3"), True),
+    "max_gap-nan": (None, dict(max_gap=float("nan")), ValueError, ("max_gap",), True),
+    "max_gap-string": (None, dict(max_gap="2"), TypeError, ("max_gap",), True),
+    "on_duplicate-bad": (None, dict(on_duplicate="keep"), ValueError, ("on_duplicate",), True),
+    "suffixes-short": (None, dict(suffixes=["p"]), ValueError, ("suffixes",), True),
+}
+
+
+@pytest.mark.parametrize("lib", ["pandas", "polars"])
+@pytest.mark.parametrize("case", list(FRAME_CASES))
+def test_frame_filter_bad_input(case: str, lib: str) -> None:
+    change, kw, exc, words, polars_too = FRAME_CASES[case]
+    fr = _frame()
+    df = _long_frame()
+    if change is not None:
+        df = change(df)
+    if lib == "polars":
+        if not polars_too:
+            pytest.skip("no such polars column (pandas-only dtype)")
+        pl = pytest.importorskip("polars")
+        df = pl.from_pandas(df)
+    args = dict(id="id", time="t", columns=["x", "y"], filter=AB)
+    args.update(kw)
+    with pytest.raises((TypeError, ValueError)) as info:
+        fr.filter(df, **args)
+    assert info.type is exc, f"{info.type.__name__}: {info.value}"
+    for w in words:
+        assert w in str(info.value), f"message does not contain {w!r}: {info.value}"
+
+
+def test_dask_filter_frame_delegates_validation() -> None:
+    """dask.filter_frame runs frame.filter on each partition (and on the empty
+    metadata frame up front): its bad arguments give frame.filter's errors."""
+    adask = _dask()
+    dd = _dd()
+    ddf = dd.from_pandas(_long_frame().sort_values("id", kind="stable"), npartitions=3, sort=False)
+    with pytest.raises(ValueError, match="columns: no column 'z'"):
+        adask.filter_frame(ddf, id="id", time="t", columns=["x", "z"], filter=AB)
+    with pytest.raises(ValueError, match="on_duplicate"):
+        adask.filter_frame(ddf, id="id", time="t", columns="x", filter=AB, on_duplicate="keep")
+    with pytest.raises(TypeError, match="columns"):
+        adask.filter_frame(ddf, id="id", time="t", columns=3, filter=AB)
+    bad = _set("t", 5, np.inf)(_long_frame().sort_values("id", kind="stable").reset_index(drop=True))
+    with pytest.raises(ValueError, match=r"time column 't': timestamp at row \d+ is inf"):
+        adask.filter_frame(dd.from_pandas(bad, npartitions=3, sort=False), id="id", time="t", columns="x", filter=AB).compute()

@@ -104,6 +104,26 @@ def _aligned(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def check_no_inf(z3: np.ndarray, off: np.ndarray) -> None:
+    """ValueError naming the track and sample of the first +-Inf of ``z3``
+    (``(n_tracks, n_samples, m)`` with track starts ``off`` in the flat sample
+    order, or ``(1, N, m)`` of a ragged batch); NaN is a missed detection.
+    Scanned in blocks: no temporary of the size of ``z``."""
+    n0, n1 = z3.shape[0], z3.shape[1]
+    block = 1 << 16
+    per = max(1, block // max(n1, 1))
+    for i0 in range(0, n0, per):
+        for j0 in range(0, n1, block):
+            blk = z3[i0 : i0 + per, j0 : j0 + block]
+            bad = np.isinf(blk)
+            if bad.any():
+                a, b = (int(x) for x in np.argwhere(bad)[0][:2])
+                r = (i0 + a) * n1 + j0 + b
+                track = int(np.searchsorted(off, r, side="right")) - 1
+                val = float(blk[a, b][np.isinf(blk[a, b])][0])
+                raise ValueError(f"track {track}, sample {r - int(off[track])}: z must be finite or NaN (a missed detection), got {val!r}")
+
+
 def run_tracks(
     f: "FixedGainFilter",
     z: Any,
@@ -148,6 +168,7 @@ def run_tracks(
         off = np.arange(n_tracks + 1, dtype=np.int64) * n_samples
         sample_shape = (n_samples,) if single else (n_tracks, n_samples)
     z3 = _aligned(z3)
+    check_no_inf(z3, off)
     f._check_params(n_tracks)
     t_arr = None
     t2 = None

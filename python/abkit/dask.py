@@ -258,7 +258,10 @@ def run(
     tail = tuple(z.shape[n_sample:])
     td = None
     if t is not None:
-        td = t if isinstance(t, da.Array) else da.asarray(t)
+        t_in = t if isinstance(t, da.Array) else np.asarray(t)
+        if t_in.dtype.kind not in "iuf":  # as FixedGainFilter.run: real timestamps (not bool)
+            raise TypeError(f"t must be a real (float64) array of timestamps, got dtype {t_in.dtype}")
+        td = t_in if isinstance(t_in, da.Array) else da.asarray(t_in)
         if td.shape != z.shape[:n_sample]:
             raise ValueError(f"t must have the shape of z's sample axes {z.shape[:n_sample]}, got {td.shape}")
         td = td.rechunk(z.chunks[:n_sample])

@@ -40,6 +40,7 @@ concatenated samples). :class:`Tracker` holds the state for real-time use.
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -900,7 +901,9 @@ class AlphaBetaFilter(FixedGainFilter):
         if bool(np.all(design.kalman_optimal)):
             lam = 2.0 * np.sqrt(np.atleast_1d(np.asarray(design.r, dtype=float)))
             t = np.atleast_1d(np.asarray(T, dtype=float))
-            ratio = np.broadcast_to(lam / (t * t), (f.n_params,))
+            with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
+                ratio = np.broadcast_to(lam / t / t, (f.n_params,))
+            _check_rate("the design's tracking-index rate lambda / T^2", ratio, ("T",), (t,))
             f._tv_law = ("ab-design", np.ascontiguousarray(ratio)[:, None])
         return f
 
@@ -937,10 +940,15 @@ class AlphaBetaFilter(FixedGainFilter):
         """
         from . import alphabeta as _ab
 
+        for name, v in (("sigma_w", sigma_w), ("sigma_v", sigma_v), ("T", T)):
+            if np.ndim(v) > 1:
+                raise ValueError(f"{name} must be a scalar or a 1-D array (one per track), got shape {np.shape(v)}")
         d = _ab.from_noise(sigma_w, sigma_v, T)
         f = cls(d.alpha, d.beta, T, **kw)
         sw, sv = (np.atleast_1d(as_float_array(n, v)) for n, v in (("sigma_w", sigma_w), ("sigma_v", sigma_v)))
-        ratio = np.broadcast_to(sw / sv, (f.n_params,))
+        with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
+            ratio = np.broadcast_to(sw / sv, (f.n_params,))
+        _check_rate("the noise ratio sigma_w / sigma_v", ratio, ("sigma_w", "sigma_v"), (sw, sv))
         f._tv_law = ("ab-design", np.ascontiguousarray(ratio)[:, None])
         return f
 
@@ -1113,10 +1121,29 @@ class AlphaBetaGammaFilter(FixedGainFilter):
         for name, v in (("sigma_p", sigma_p), ("sigma_v", sigma_v), ("sigma_a", sigma_a), ("sigma_m", sigma_m), ("T", T)):
             if np.ndim(v) != 0:
                 raise ValueError(f"{name} must be a scalar")
-        d = _abg.from_noise(sigma_p, sigma_v, sigma_a, sigma_m, h=T, convention=convention)
-        f = cls(d.alpha, d.beta, d.gamma, T, convention=convention, **kw)
+        check_positive("T", as_float_array("T", T))
+        try:
+            d = _abg.from_noise(sigma_p, sigma_v, sigma_a, sigma_m, h=T, convention=convention)
+            f = cls(d.alpha, d.beta, d.gamma, T, convention=convention, **kw)
+        except ValueError as exc:
+            if re.match(r"(sigma_[pvam]|convention) ", str(exc)):  # plain domain errors name their argument
+                raise
+            # the design's own message speaks of its internals (h, lam, the
+            # gains); say which inputs of this call give no usable filter
+            raise ValueError(
+                f"sigma_p={float(sigma_p):.6g}, sigma_v={float(sigma_v):.6g}, sigma_a={float(sigma_a):.6g}, "
+                f"sigma_m={float(sigma_m):.6g}, T={float(T):.6g} give no usable steady-state filter "
+                f"(h is T): {exc}"
+            ) from None
         f._tv_law = ("abg-design", np.array([[float(sigma_p), float(sigma_v), float(sigma_a), float(sigma_m)]]))
         return f
+
+
+def _check_rate(what: str, ratio: np.ndarray, names: Tuple[str, ...], arrays: Tuple[np.ndarray, ...]) -> None:
+    """ValueError (naming the inputs) unless the positive rate of a
+    ``"design"`` gain schedule is finite and > 0 (not over- or underflowed):
+    a filter whose timestamped design would silently be Inf/NaN or zero."""
+    check_representable(what, np.where(ratio > 0, ratio, np.nan), names, arrays)
 
 
 class Tracker:

@@ -16,6 +16,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from .filters import FilterResult, FilterState, FixedGainFilter
+from ._tracks import check_max_gap, check_on_duplicate
 
 __all__ = ["filter", "FrameSummary"]
 
@@ -144,11 +145,12 @@ def group(codes: np.ndarray, t: Optional[np.ndarray]) -> Grouping:
 def run_grouped(filt: FixedGainFilter, g: Grouping, zs: Sequence[np.ndarray], t: Optional[np.ndarray], *,
                 init: Any = "two-point", return_residuals: bool = True, kw: Optional[Dict[str, Any]] = None,
                 first_state: Optional[Sequence[Optional[FilterState]]] = None,
-                where: Any = None) -> List[FilterResult]:
+                where: Any = None, names: Optional[Sequence[str]] = None) -> List[FilterResult]:
     """Run ``filt`` on each column of ``zs`` (original row order) in the
     grouping's ragged layout; results in run order. ``first_state[c]``: the
     state of the first track for column ``c`` (streaming), or None.
-    ``where(track, sample) -> str`` restates a kernel error's place."""
+    ``where(track, sample) -> str`` restates a kernel error's place;
+    ``names``: the columns of ``zs`` (an error then names its column)."""
     kw = dict(kw or {})
     ts = None if t is None else g.take(t)
     out: List[FilterResult] = []
@@ -165,7 +167,8 @@ def run_grouped(filt: FixedGainFilter, g: Grouping, zs: Sequence[np.ndarray], t:
             if m is None or where is None:
                 raise
             msg = str(exc)
-            raise ValueError(f"{where(int(m.group(1)), int(m.group(2)))}: {msg[m.end():].lstrip(': ')}") from None
+            col = "" if names is None else f"column {names[c]!r}, "
+            raise ValueError(f"{col}{where(int(m.group(1)), int(m.group(2)))}: {msg[m.end():].lstrip(': ')}") from None
     return out
 
 
@@ -420,7 +423,15 @@ def filter(
         raise TypeError(f"filter must be an abkit filter, got {type(filter).__name__}")
     if filter.m != 1:
         raise ValueError(f"filter has {filter.m} measurements per sample; abkit.frame.filter runs scalar-measurement filters (one per column)")
-    cols = [columns] if isinstance(columns, str) else list(columns)
+    for what, c in (("id", id), ("time", time)):
+        if not isinstance(c, str) and not (what == "time" and c is None):
+            raise TypeError(f"{what} must be a column name (str){'' if what == 'id' else ' or None'}, got {type(c).__name__}")
+    if isinstance(columns, str):
+        cols = [columns]
+    elif hasattr(columns, "__iter__") and not isinstance(columns, (dict, set, bytes)) and all(isinstance(c, str) for c in list(columns)):
+        cols = list(columns)
+    else:
+        raise TypeError(f"columns must be a column name or a list of column names (str), got {columns!r}")
     if not cols:
         raise ValueError("columns must name at least one measurement column")
     if len(set(cols)) != len(cols):
@@ -430,6 +441,8 @@ def filter(
         raise ValueError("id, time and the measurement columns must be different columns")
     if (max_gap is not None or on_duplicate != "raise") and time is None:
         raise ValueError("max_gap and on_duplicate='drop' need timestamps (time=)")
+    check_on_duplicate(on_duplicate)  # up front: also for an empty frame (dask's metadata)
+    check_max_gap(max_gap, True)
     n = filter.n
     sfx = list(suffixes) if suffixes is not None else (["pos", "vel", "acc"][:n] if n <= 3 else [f"x{i}" for i in range(n)])
     if len(sfx) != n:
@@ -455,6 +468,7 @@ def filter(
     def where(track: int, sample: int) -> str:
         r = g.row(track, sample)
         v = id_values.iloc[r] if lib == "pandas" else id_values[r]
+        v = v.item() if isinstance(v, np.generic) else v
         return f"track {id}={v!r}, row {r}"
 
     new: Dict[str, np.ndarray] = {}
@@ -462,7 +476,7 @@ def filter(
     dropped = np.zeros(n_tracks, dtype=np.int64)
     restarts = np.zeros(n_tracks, dtype=np.int64)
     if g.n:
-        results = run_grouped(filter, g, zs, t, init=init, return_residuals=return_residuals, kw=kw, where=where)
+        results = run_grouped(filter, g, zs, t, init=init, return_residuals=return_residuals, kw=kw, where=where, names=cols)
         dropped, restarts = results[0].n_dropped, results[0].n_restarts
         for row, r in zip(names, results):
             states = g.put(r.states)

@@ -265,7 +265,21 @@ impl<T: IoFloat> PostTrack<T, 2> for AbSmooth<'_> {
                 max_gap.unwrap_or(f64::INFINITY),
                 self.lag,
                 states,
-                &mut |dt| Ok(b.at(dt)),
+                &mut |dt| {
+                    let (phi, a) = b.at(dt);
+                    if phi.iter().chain(a.iter()).flatten().all(|v| v.is_finite()) {
+                        Ok((phi, a))
+                    } else {
+                        Err(Error::Domain {
+                            name: "t",
+                            expected: format!(
+                                "steps dt at which the smoother's backward gain is representable in float64 \
+                                 (track {track}); rescale t"
+                            ),
+                            value: dt,
+                        })
+                    }
+                },
             ),
         }
     }
@@ -956,7 +970,10 @@ fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const 
                     None => opts.t_nominal,
                 };
                 if dt != ab_dt {
-                    let Some((a, g)) = law.ab_gains(dt) else {
+                    let Some((a, g)) = law
+                        .ab_gains(dt)
+                        .filter(|(a, g)| a.is_finite() && g.is_finite())
+                    else {
                         break;
                     };
                     (ab_dt, ab_a, ab_g) = (dt, a, g);
@@ -1027,9 +1044,23 @@ fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const 
         if phase >= 2.0 {
             if dt != last_dt {
                 match law.step(dt) {
-                    Ok(s) => step = s,
+                    Ok(s) if step_is_finite(&s) => step = s,
+                    Ok(_) => {
+                        res = Err(Error::Data {
+                            track,
+                            sample: k,
+                            msg: format!(
+                                "t: the step dt={dt} gives a transition or gains beyond float64's range (overflow); rescale t"
+                            ),
+                        });
+                        break;
+                    }
                     Err(e) => {
-                        res = Err(data_err(track, k, e));
+                        res = Err(Error::Data {
+                            track,
+                            sample: k,
+                            msg: format!("t: no gains for the step dt={dt}: {e}"),
+                        });
                         break;
                     }
                 }
@@ -1154,6 +1185,14 @@ fn ab_update<const FMA: bool>(x: f64, v: f64, dt: f64, a: f64, g: f64, zk: f64) 
         crate::filter::madd::<FMA>(-g, xp, w),
         e,
     )
+}
+
+fn step_is_finite<const N: usize, const M: usize>(s: &Step<N, M>) -> bool {
+    s.phi
+        .iter()
+        .flatten()
+        .chain(s.k.iter().flatten())
+        .all(|v| v.is_finite())
 }
 
 fn data_err(track: usize, sample: usize, e: Error) -> Error {

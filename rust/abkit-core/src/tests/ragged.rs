@@ -1,5 +1,5 @@
 use super::*;
-use crate::irregular::{AbDesign, AbFixed};
+use crate::irregular::{AbDesign, AbFixed, AbgDesign, AbgFixed};
 
 fn ab_filter(laws: &[AbDesign]) -> TrackFilter<'_, AbDesign, 2, 1> {
     TrackFilter {
@@ -245,4 +245,107 @@ fn fixed_gain_law_without_times_is_the_plain_filter() {
         }
         assert!((out[k] - x).abs() < 1e-14 && (out[5 + k] - v).abs() < 1e-14);
     }
+}
+
+fn first_error(law: &[AbgFixed], t: &[f64]) -> Error {
+    let f = TrackFilter {
+        laws: law,
+        h: [[1.0, 0.0, 0.0]],
+        h_pinv: [[1.0], [0.0], [0.0]],
+    };
+    let z = vec![1.0; t.len()];
+    let mut st = vec![TrackState::default()];
+    let mut counts = vec![[0; 2]];
+    let mut out = vec![0.0; 3 * z.len()];
+    let o = opts(Init::First, None, false);
+    let ts = Samples::flat(t, 1).unwrap();
+    filter_tracks(
+        &f,
+        &o,
+        &[0, t.len() as i64],
+        &Samples::flat(&z, 1).unwrap(),
+        Some(&ts),
+        &mut st,
+        &mut out,
+        None,
+        &mut counts,
+        false,
+        &NoPost,
+    )
+    .err()
+    .unwrap()
+}
+
+#[test]
+fn steps_whose_gains_overflow_are_errors_naming_t() {
+    // gamma / dt^2 overflows at dt = 1e-200: an error at that sample, not Inf estimates
+    let law = [AbgFixed {
+        alpha: 0.5,
+        beta: 0.2,
+        cgamma: 0.02,
+    }];
+    match first_error(&law, &[0.0, 1e-200]) {
+        Error::Data { track, sample, msg } => {
+            assert_eq!((track, sample), (0, 1));
+            assert!(msg.starts_with("t: the step dt="), "{msg}");
+        }
+        e => panic!("{e:?}"),
+    }
+}
+
+#[test]
+fn steps_without_a_design_are_errors_naming_t() {
+    // sigma_a h^4 / sigma_m underflows at h = 1e-300: the design has no gains there
+    let laws = [AbgDesign::new(0.0, 0.0, 0.1, 1.0).unwrap()];
+    let f = TrackFilter {
+        laws: &laws,
+        h: [[1.0, 0.0, 0.0]],
+        h_pinv: [[1.0], [0.0], [0.0]],
+    };
+    let t = [0.0, 1e-300];
+    let z = [1.0, 2.0];
+    let mut st = vec![TrackState::default()];
+    let mut counts = vec![[0; 2]];
+    let mut out = vec![0.0; 6];
+    let ts = Samples::flat(&t, 1).unwrap();
+    let e = filter_tracks(
+        &f,
+        &opts(Init::First, None, false),
+        &[0, 2],
+        &Samples::flat(&z, 1).unwrap(),
+        Some(&ts),
+        &mut st,
+        &mut out,
+        None,
+        &mut counts,
+        false,
+        &NoPost,
+    )
+    .err()
+    .unwrap();
+    match e {
+        Error::Data { track, sample, msg } => {
+            assert_eq!((track, sample), (0, 1));
+            assert!(msg.starts_with("t: no gains for the step dt="), "{msg}");
+        }
+        e => panic!("{e:?}"),
+    }
+}
+
+#[test]
+fn smoothing_steps_whose_backward_gain_overflows_are_errors_naming_t() {
+    let back = [crate::irregular::AbBackward::Design(0.3)];
+    let post = AbSmooth {
+        back: &back,
+        t_nominal: 1.0,
+        lag: None,
+    };
+    let mut x = [0.0, 1.0];
+    let mut v = [0.0, 1.0];
+    let t = [0.0, 1e-300];
+    let tf = |k: usize| t[k];
+    let e = PostTrack::<f64, 2>::post(&post, 0, &mut [&mut x[..], &mut v[..]], Some(&tf), None)
+        .err()
+        .unwrap();
+    assert!(matches!(e, Error::Domain { name: "t", .. }), "{e:?}");
 }
