@@ -32,6 +32,9 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from ._cli_args import positive_float as _positive_float
+from ._cli_args import positive_int as _positive_int
+
 __all__ = ["add_parser"]
 
 _FORMATS = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet", ".npy": "npy", ".npz": "npz"}
@@ -101,26 +104,6 @@ def _si(x: float) -> str:
 
 
 # -- arguments -------------------------------------------------------------------------
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not (v > 0 and math.isfinite(v)):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return v
-
-
 _AB_FLAGS = ("sigma_w", "snr", "snr_db", "tracking_error", "bandwidth", "omega_n", "damping")
 _ABG_FLAGS = ("sigma_p", "sigma_a", "gamma")
 _SINGER_FLAGS = ("tau", "sigma_pos")

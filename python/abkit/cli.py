@@ -28,6 +28,8 @@ import sys
 from typing import List, Optional, Sequence
 
 from . import __version__
+from ._cli_args import fraction as _fraction
+from ._cli_args import positive_int as _positive_int
 from . import abg
 from . import alphabeta as ab
 
@@ -89,26 +91,6 @@ def _design_singer(a: argparse.Namespace) -> int:
         if a.sigma_vel is None:
             print(f"  equivalent alpha-beta-gamma gains: alpha={float(np.asarray(r.alpha)):.6g}, beta={float(np.asarray(r.beta)):.6g}, gamma={float(np.asarray(r.gamma)):.6g}")
     return 0
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
-
-
-def _fraction(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1), got {text!r}") from None
-    if not 0.0 <= v < 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1), got {text!r}")
-    return v
 
 
 def _design_from_args(p: argparse.ArgumentParser, a: argparse.Namespace) -> ab.AlphaBeta:
