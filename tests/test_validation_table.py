@@ -225,6 +225,8 @@ def _dask_array(v: np.ndarray) -> Any:
     """``v`` as a dask array in two chunks along each axis (explicit chunks:
     dask cannot size object arrays itself)."""
     da = pytest.importorskip("dask.array")
+    if not isinstance(v, np.ndarray):
+        return v  # not an array (None, a string, a list): abkit.dask.run gets it as is
     return da.from_array(v, chunks=tuple(max(1, s // 2) for s in v.shape))
 
 
