@@ -38,7 +38,16 @@ def rss():
             return int(line.split()[1]) * 1024
 
 warnings.simplefilter('ignore')
-entries = [e for e in t.ENTRIES if e.name not in t.FIGURES]
+import pytest
+
+def available(e):  # False: its optional dependency (pandas, polars, dask) is not installed
+    try:
+        e.call(**e.args)
+    except pytest.skip.Exception:
+        return False
+    return True
+
+entries = [e for e in t.ENTRIES if e.name not in t.FIGURES and available(e)]
 calls = int(os.environ.get('ABKIT_ENDURANCE_CALLS', '500'))
 for e in entries:            # warm-up: caches, the rayon pool, the threads=3 pool
     for _ in range(50):
