@@ -82,7 +82,7 @@ def filter_alphabeta(
     threads: int | None = None,
     smoother_gain: _F64 | None = None,
     lag: int | None = None,
-) -> None: ...
+) -> bool: ...
 def filter_fixed_gain(
     z: _FArr,
     n: int,
@@ -99,7 +99,7 @@ def filter_fixed_gain(
     threads: int | None = None,
     smoother_gain: _F64 | None = None,
     lag: int | None = None,
-) -> None: ...
+) -> bool: ...
 def filter_tracks(
     z: _FArr,
     t: _F64 | None,

@@ -61,6 +61,9 @@ __all__ = [
 
 _W = int(_abkit.STATE_WIDTH)
 _NMAX = int(_abkit.MAX_STATES)
+# A fresh track's packed state: zeros, phase 0, no timestamps known (NaN).
+_FRESH = np.zeros(_W)
+_FRESH[_NMAX + 2 :] = np.nan
 _ACCEPTED = (np.dtype(np.float32), np.dtype(np.float64))
 
 #: Alpha-beta-gamma gain conventions: the filter-form gain vector for
@@ -392,8 +395,7 @@ class FixedGainFilter:
         return prepare_z(z, self.m)
 
     def _initial_state(self, init: Any, state: Optional[FilterState], n_tracks: int) -> Tuple[np.ndarray, str]:
-        packed = np.zeros((n_tracks, _W))
-        packed[:, _NMAX + 2 :] = np.nan  # no timestamps known
+        packed = np.tile(_FRESH, (n_tracks, 1))  # no timestamps known
         if state is not None:
             if not isinstance(state, FilterState):
                 raise TypeError(f"state must be a FilterState (result.state), got {type(state).__name__}")
@@ -462,8 +464,10 @@ class FixedGainFilter:
             raise ValueError("out overlaps z")
         return out
 
-    def _kernel(self, z3: np.ndarray, packed: np.ndarray, init: str, out3: np.ndarray, res3: Optional[np.ndarray], threads: Optional[int], sgain: Optional[np.ndarray] = None, lag: Optional[int] = None) -> None:
-        _abkit.filter_fixed_gain(
+    def _kernel(self, z3: np.ndarray, packed: np.ndarray, init: str, out3: np.ndarray, res3: Optional[np.ndarray], threads: Optional[int], sgain: Optional[np.ndarray] = None, lag: Optional[int] = None) -> Optional[bool]:
+        """Run the batch kernel; ``True`` if some started track's final
+        state is not finite (``None``: not known, check)."""
+        return _abkit.filter_fixed_gain(
             z3, self.n, self.m, self._phi.reshape(-1), self._h.reshape(-1), self._k.reshape(-1),
             self._hpinv.reshape(-1), self._t, init, packed, out3, res3, threads, sgain, lag,
         )
@@ -633,8 +637,8 @@ class FixedGainFilter:
         res3 = None
         if return_residuals:
             res3 = np.empty((n_tracks, n_samples, self.m), dtype=z3.dtype)
-        self._kernel(z3, packed, init_mode, out3, res3, None if threads is None else int(threads), sgain, None if lag is None else int(lag))
-        if not self.allow_unstable:
+        suspect = self._kernel(z3, packed, init_mode, out3, res3, None if threads is None else int(threads), sgain, None if lag is None else int(lag))
+        if not self.allow_unstable and suspect is not False:
             ph = packed[:, _NMAX]
             # One cheap reduction first (NaN/Inf propagate through the sum; a
             # half-started track's state is its position alone); the exact
@@ -952,8 +956,8 @@ class AlphaBetaFilter(FixedGainFilter):
         f._tv_law = ("ab-design", np.ascontiguousarray(ratio)[:, None])
         return f
 
-    def _kernel(self, z3: np.ndarray, packed: np.ndarray, init: str, out3: np.ndarray, res3: Optional[np.ndarray], threads: Optional[int], sgain: Optional[np.ndarray] = None, lag: Optional[int] = None) -> None:
-        _abkit.filter_alphabeta(z3, self._params, init, packed, out3, res3, threads, sgain, lag)
+    def _kernel(self, z3: np.ndarray, packed: np.ndarray, init: str, out3: np.ndarray, res3: Optional[np.ndarray], threads: Optional[int], sgain: Optional[np.ndarray] = None, lag: Optional[int] = None) -> Optional[bool]:
+        return _abkit.filter_alphabeta(z3, self._params, init, packed, out3, res3, threads, sgain, lag)
 
     def _default_smoother_gain(self) -> np.ndarray:
         """Backward gain of the Kalman-equivalent model: the SNR r whose

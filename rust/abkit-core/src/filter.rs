@@ -30,6 +30,9 @@ use crate::{Error, Result};
 use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
+#[path = "filter_flat.rs"]
+mod flat;
+#[cfg(target_arch = "x86_64")]
 #[path = "filter_simd.rs"]
 mod simd;
 
@@ -783,6 +786,76 @@ fn ab_split<T: IoFloat, const FMA: bool>(
     ab_loop::<T, FMA>(c, st, body_end, n, |k| row[k].to_f64(), out);
 }
 
+/// Start-up of one alpha-beta track (`params (a, b, t)`): the samples
+/// before it is running, from the state `st`. Returns the number of samples
+/// consumed (all `n` if it never runs); the track runs from there with
+/// `st.x` when `st.phase == 2`.
+#[inline(always)]
+fn ab_start<T: IoFloat>(
+    a: f64,
+    b: f64,
+    t: f64,
+    init: Init,
+    st: &mut TrackState,
+    n: usize,
+    zf: &dyn Fn(usize) -> f64,
+    o: &mut TrackOut<'_, T, 2>,
+) -> usize {
+    // Fast path of the usual start: two valid samples first (same
+    // arithmetic as the general start-up code).
+    if st.phase == 0.0 && n >= 2 {
+        let (z0, z1) = (zf(0), zf(1));
+        if !z0.is_nan() && !z1.is_nan() {
+            let [s0, s1] = &mut o.states;
+            let len = match init {
+                Init::TwoPoint => {
+                    st.x[0] = z1;
+                    st.x[1] = (z1 - z0) / (1.0 * t);
+                    s0[0] = T::from_f64(z0);
+                    s1[0] = T::from_f64(f64::NAN);
+                    s0[1] = T::from_f64(st.x[0]);
+                    s1[1] = T::from_f64(st.x[1]);
+                    if let Some(r) = o.resid.as_deref_mut() {
+                        r[0] = T::from_f64(f64::NAN);
+                        r[1] = T::from_f64(f64::NAN);
+                    }
+                    2
+                }
+                Init::First => {
+                    st.x[0] = z0;
+                    st.x[1] = 0.0;
+                    s0[0] = T::from_f64(z0);
+                    s1[0] = T::from_f64(0.0);
+                    if let Some(r) = o.resid.as_deref_mut() {
+                        r[0] = T::from_f64(f64::NAN);
+                    }
+                    1
+                }
+            };
+            st.phase = 2.0;
+            st.since = 0.0;
+            return len;
+        }
+    }
+    let len = startup_len(init, st, n, &zf);
+    if len > 0 {
+        let gains = Gains::<2, 1> {
+            phi: [[1.0, t], [0.0, 1.0]],
+            h: [[1.0, 0.0]],
+            k: [[a], [b / t]],
+            h_pinv: [[1.0], [0.0]],
+            t,
+        };
+        let [s0, s1] = &mut o.states;
+        let mut head = TrackOut {
+            states: [&mut s0[..len], &mut s1[..len]],
+            resid: o.resid.as_deref_mut().map(|r| &mut r[..len]),
+        };
+        run_track(&gains, init, st, len, |k| [zf(k)], &mut head);
+    }
+    len
+}
+
 type Job<'a, T, const N: usize> = (usize, &'a mut TrackState, TrackOut<'a, T, N>);
 
 /// Alpha-beta filtering of a group of tracks (the unit of parallel work).
@@ -804,62 +877,7 @@ fn ab_group<T: IoFloat, const FMA: bool>(
     let lanes_ok = group.len() == AB_LANES;
     for (g, (i, st, o)) in group.iter_mut().enumerate() {
         let (_, a, b, t) = konst(*i);
-        let gains = Gains::<2, 1> {
-            phi: [[1.0, t], [0.0, 1.0]],
-            h: [[1.0, 0.0]],
-            k: [[a], [b / t]],
-            h_pinv: [[1.0], [0.0]],
-            t,
-        };
-        let zf = |k: usize| z.at(*i, k, 0);
-        // Fast path of the usual start: two valid samples first (same
-        // arithmetic as the general start-up code).
-        if st.phase == 0.0 && n >= 2 {
-            let (z0, z1) = (zf(0), zf(1));
-            if !z0.is_nan() && !z1.is_nan() {
-                let [s0, s1] = &mut o.states;
-                let len = match init {
-                    Init::TwoPoint => {
-                        st.x[0] = z1;
-                        st.x[1] = (z1 - z0) / (1.0 * t);
-                        s0[0] = T::from_f64(z0);
-                        s1[0] = T::from_f64(f64::NAN);
-                        s0[1] = T::from_f64(st.x[0]);
-                        s1[1] = T::from_f64(st.x[1]);
-                        if let Some(r) = o.resid.as_deref_mut() {
-                            r[0] = T::from_f64(f64::NAN);
-                            r[1] = T::from_f64(f64::NAN);
-                        }
-                        2
-                    }
-                    Init::First => {
-                        st.x[0] = z0;
-                        st.x[1] = 0.0;
-                        s0[0] = T::from_f64(z0);
-                        s1[0] = T::from_f64(0.0);
-                        if let Some(r) = o.resid.as_deref_mut() {
-                            r[0] = T::from_f64(f64::NAN);
-                        }
-                        1
-                    }
-                };
-                st.phase = 2.0;
-                st.since = 0.0;
-                if g < AB_LANES {
-                    k0[g] = len;
-                }
-                continue;
-            }
-        }
-        let len = startup_len(init, st, n, &zf);
-        if len > 0 {
-            let [s0, s1] = &mut o.states;
-            let mut head = TrackOut {
-                states: [&mut s0[..len], &mut s1[..len]],
-                resid: o.resid.as_deref_mut().map(|r| &mut r[..len]),
-            };
-            run_track(&gains, init, st, len, |k| [zf(k)], &mut head);
-        }
+        let len = ab_start::<T>(a, b, t, init, st, n, &|k: usize| z.at(*i, k, 0), o);
         if g < AB_LANES {
             k0[g] = len;
         }
@@ -1773,6 +1791,12 @@ pub fn filter_ab<T: IoFloat>(
         )));
     }
     z.validate()?;
+    #[cfg(target_arch = "x86_64")]
+    if resid.is_none() {
+        if let Some(r) = ab_flat_batch(params, init, z, states, out, parallel, smoother.as_ref()) {
+            return r;
+        }
+    }
     run_batch::<T, 2>(
         z.n_tracks,
         z.n_samples,
@@ -1794,6 +1818,114 @@ pub fn filter_ab<T: IoFloat>(
             }
         },
     )
+}
+
+/// Short contiguous rows (fewer than [`SIMD_MIN_SAMPLES`] samples, no
+/// residuals) through the flat vector kernel ([`flat`]): the rows are one
+/// flat sequence of tracks. `None` when it does not apply (the row kernels
+/// run instead). Bit-identical to them.
+#[cfg(target_arch = "x86_64")]
+fn ab_flat_batch<T: IoFloat>(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, T>,
+    states: &mut [TrackState],
+    out: &mut [T],
+    parallel: bool,
+    smoother: Option<&Smoother<'_, 2>>,
+) -> Option<Result<()>> {
+    let (nt_, n) = (z.n_tracks, z.n_samples);
+    let total = nt_.checked_mul(n)?;
+    let rows_ok = z.s_sample == 1 && (z.s_track == n as isize || nt_ == 1);
+    if !(uses_fma() && simd::available() && simd::fits::<T>(0, 32))
+        || z.m != 1
+        || n == 0
+        || n >= SIMD_MIN_SAMPLES
+        || !rows_ok
+        || states.len() != nt_
+        || out.len() != 2 * total
+    {
+        return None;
+    }
+    let zs = z.data.get(z.base..z.base.checked_add(total)?)?;
+    let nt = streamed::<T>(2 * total * std::mem::size_of::<T>(), true);
+    let (xs, vs) = out.split_at_mut(total);
+    // Chunks of whole tracks (the unit of parallel work); results do not
+    // depend on the chunking.
+    let threads = if parallel {
+        rayon::current_num_threads()
+    } else {
+        1
+    };
+    let per = if threads > 1 {
+        nt_.div_ceil(4 * threads).max((1usize << 18).div_ceil(n))
+    } else {
+        nt_
+    }
+    .max(1);
+    let shared = params.len() == 1;
+    let run = |j0: usize, st: &mut [TrackState], xs: &mut [T], vs: &mut [T]| -> Result<()> {
+        let cn = st.len();
+        let off: Vec<usize> = (0..=cn).map(|j| j * n).collect();
+        let p = |j: usize| params[if shared { 0 } else { j0 + j }];
+        let konst = |j: usize| {
+            let (a, b, t) = p(j);
+            AbConst::new(a, b, t)
+        };
+        let mut start = |j: usize, st: &mut TrackState, zr: &[T], xr: &mut [T], vr: &mut [T]| {
+            let (a, b, t) = p(j);
+            let mut o = TrackOut {
+                states: [xr, vr],
+                resid: None,
+            };
+            Ok(ab_start::<T>(
+                a,
+                b,
+                t,
+                init,
+                st,
+                zr.len(),
+                &|k| zr[k].to_f64(),
+                &mut o,
+            ))
+        };
+        let zc = &zs[j0 * n..(j0 + cn) * n];
+        // SAFETY: `simd::available()` checked AVX-512F and FMA; T is f32 or
+        // f64 (`fits`).
+        unsafe { flat::ab_flat(&konst, shared, &mut start, &off, zc, xs, vs, st, nt)? };
+        if let Some(sm) = smoother {
+            for j in 0..cn {
+                let i = j0 + j;
+                let t = p(j).2;
+                let a = &sm.a[if sm.a.len() == 1 { 0 } else { i }];
+                let (x, v) = (&mut xs[j * n..(j + 1) * n], &mut vs[j * n..(j + 1) * n]);
+                crate::smooth::smooth_track(&[[1.0, t], [0.0, 1.0]], a, sm.lag, &mut [x, v]);
+            }
+        }
+        Ok(())
+    };
+    let mut jobs = Vec::with_capacity(nt_.div_ceil(per));
+    let (mut st_rest, mut x_rest, mut v_rest) = (states, xs, vs);
+    let mut j0 = 0;
+    while j0 < nt_ {
+        let cn = per.min(nt_ - j0);
+        let (a, b) = std::mem::take(&mut st_rest).split_at_mut(cn);
+        let (xa, xb) = std::mem::take(&mut x_rest).split_at_mut(cn * n);
+        let (va, vb) = std::mem::take(&mut v_rest).split_at_mut(cn * n);
+        jobs.push((j0, a, xa, va));
+        (st_rest, x_rest, v_rest) = (b, xb, vb);
+        j0 += cn;
+    }
+    let res: Vec<Result<()>> = if jobs.len() > 1 {
+        jobs.into_par_iter()
+            .map(|(j0, st, x, v)| run(j0, st, x, v))
+            .collect()
+    } else {
+        jobs.into_iter()
+            .map(|(j0, st, x, v)| run(j0, st, x, v))
+            .collect()
+    };
+    Some(res.into_iter().collect())
 }
 
 fn check_params<T>(n_params: usize, z: &Measurements<'_, T>) -> Result<()> {

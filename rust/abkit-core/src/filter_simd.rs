@@ -41,7 +41,7 @@ pub(super) fn available() -> bool {
     })
 }
 
-fn is_f64<T: 'static>() -> bool {
+pub(super) fn is_f64<T: 'static>() -> bool {
     TypeId::of::<T>() == TypeId::of::<f64>()
 }
 
@@ -55,7 +55,7 @@ fn is_f32<T: 'static>() -> bool {
 /// `T` is `f64` or `f32`, `p..p+8` is readable, and AVX-512F is available.
 #[inline]
 #[target_feature(enable = "avx512f")]
-unsafe fn load8<T: 'static>(p: *const T) -> __m512d {
+pub(super) unsafe fn load8<T: 'static>(p: *const T) -> __m512d {
     // SAFETY: forwarded from the caller (T is f64 or f32, 8 elements readable).
     unsafe {
         if is_f64::<T>() {
@@ -75,7 +75,7 @@ unsafe fn load8<T: 'static>(p: *const T) -> __m512d {
 /// aligned to 64 bytes; AVX-512F is available.
 #[inline]
 #[target_feature(enable = "avx512f")]
-unsafe fn store_line<T: 'static>(p: *mut T, a: __m512d, b: __m512d, nt: bool) {
+pub(super) unsafe fn store_line<T: 'static>(p: *mut T, a: __m512d, b: __m512d, nt: bool) {
     // SAFETY: forwarded from the caller.
     unsafe {
         if is_f64::<T>() {
@@ -100,7 +100,7 @@ unsafe fn store_line<T: 'static>(p: *mut T, a: __m512d, b: __m512d, nt: bool) {
 /// In-place transpose of the 8 x 8 matrix whose rows are `r`.
 #[inline]
 #[target_feature(enable = "avx512f")]
-fn transpose8(r: &mut [__m512d; 8]) {
+pub(super) fn transpose8(r: &mut [__m512d; 8]) {
     // Stage 1: 2 x 2 blocks within 128-bit lanes.
     let t0 = _mm512_unpacklo_pd(r[0], r[1]);
     let t1 = _mm512_unpackhi_pd(r[0], r[1]);

@@ -111,11 +111,14 @@ struct Buffers<'py, T: Element> {
     state: Bound<'py, PyArray2<f64>>,
 }
 
+/// Run a batch kernel; returns whether some started track's final state is
+/// not finite (the caller then finds which; `n`: states per track).
 fn run_typed<'py, T: IoFloat + Element>(
     py: Python<'py>,
     z: PyReadonlyArray3<'py, T>,
     bufs: Buffers<'py, T>,
     threads: Option<usize>,
+    n: usize,
     run: impl FnOnce(
             &Measurements<'_, T>,
             &mut [TrackState],
@@ -124,7 +127,7 @@ fn run_typed<'py, T: IoFloat + Element>(
             bool,
         ) -> abkit_core::Result<()>
         + Send,
-) -> PyResult<()> {
+) -> PyResult<bool> {
     let view = z.as_array();
     let meas = measurements(&view);
     let mut out_rw = bufs.out.readwrite();
@@ -142,9 +145,24 @@ fn run_typed<'py, T: IoFloat + Element>(
         ));
     }
     let states = states_from_f64(packed).map_err(|e| to_pyerr((0, e)))?;
-    let res =
-        py.detach(|| guard(|| with_threads(threads, |par| run(&meas, states, out, resid, par))))??;
+    let res = py.detach(|| {
+        guard(|| {
+            with_threads(threads, |par| {
+                run(&meas, states, out, resid, par).map(|()| not_finite(states, n))
+            })
+        })
+    })??;
     res.map_err(|e| to_pyerr((0, e)))
+}
+
+/// Whether a started track's state is not finite (a held first position,
+/// or any of the `n` states of a running track).
+fn not_finite(states: &[TrackState], n: usize) -> bool {
+    let n = n.min(abkit_core::filter::MAX_STATES);
+    states.iter().any(|s| {
+        (s.phase == 1.0 && !s.x[0].is_finite())
+            || (s.phase >= 2.0 && !s.x[..n].iter().all(|v| v.is_finite()))
+    })
 }
 
 fn dispatch_dtype<'py>(
@@ -178,7 +196,7 @@ fn dispatch_dtype<'py>(
 }
 
 macro_rules! typed {
-    ($py:expr, $is64:expr, $z:expr, $out:expr, $resid:expr, $state:expr, $threads:expr, $run:expr) => {
+    ($py:expr, $is64:expr, $z:expr, $out:expr, $resid:expr, $state:expr, $threads:expr, $n:expr, $run:expr) => {
         if $is64 {
             run_typed::<f64>(
                 $py,
@@ -191,6 +209,7 @@ macro_rules! typed {
                     state: $state,
                 },
                 $threads,
+                $n,
                 $run,
             )
         } else {
@@ -205,6 +224,7 @@ macro_rules! typed {
                     state: $state,
                 },
                 $threads,
+                $n,
                 $run,
             )
         }
@@ -227,7 +247,7 @@ pub(crate) fn filter_alphabeta<'py>(
     threads: Option<usize>,
     smoother_gain: Option<PyReadonlyArray1<'py, f64>>,
     lag: Option<usize>,
-) -> PyResult<()> {
+) -> PyResult<bool> {
     let a = smoother_gains::<2>(smoother_gain.as_ref())?;
     let init = parse_init(init)?;
     let p: Vec<(f64, f64, f64)> = params
@@ -245,6 +265,7 @@ pub(crate) fn filter_alphabeta<'py>(
         resid,
         state,
         threads,
+        2,
         |m, s, o, r, par| { filter_ab(&p, init, m, s, o, r, par, sm) }
     )
 }
@@ -304,7 +325,7 @@ pub(crate) fn filter_fixed_gain<'py>(
     threads: Option<usize>,
     smoother_gain: Option<PyReadonlyArray1<'py, f64>>,
     lag: Option<usize>,
-) -> PyResult<()> {
+) -> PyResult<bool> {
     let init = parse_init(init)?;
     let (phi, h, k, hp, t) = (
         phi.as_slice()?,
@@ -335,6 +356,7 @@ pub(crate) fn filter_fixed_gain<'py>(
                 resid,
                 state,
                 threads,
+                n,
                 |mm, s, o, r, par| { filter_general(&g, init, mm, s, o, r, par, sm) }
             )
         }};

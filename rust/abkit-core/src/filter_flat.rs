@@ -1,0 +1,547 @@
+//! Alpha-beta over many tracks stored back to back (AVX-512): short rows of
+//! a rectangular batch and ragged batches (the Arrow list layout).
+//!
+//! The row kernel ([`super::simd::ab_lanes8`]) keeps eight tracks in the
+//! eight slots of a register for their whole length; on short tracks its
+//! per-track start-up, alignment heads and tails cost more than the vector
+//! loop saves. Here a slot is not tied to a track but to a *region*: a run
+//! of consecutive tracks, contiguous in memory, of a few thousand samples.
+//! Each slot walks its region in whole cache lines (8 `f64` or 16 `f32`
+//! samples per block) straight across the track boundaries; when its region
+//! ends it takes the next one (longest first), so the slots stay busy until
+//! the last regions.
+//!
+//! At a boundary inside a block the slot's track changes:
+//! - the old track's final state is read from the block's (`f64`) rows at
+//!   its last sample;
+//! - the new track's start-up (two-point or first-sample start, or whatever
+//!   NaN pattern it begins with) runs scalar, with the same code as
+//!   everywhere else, and writes its own outputs; the block does not store
+//!   over them (masked stores);
+//! - at the first running sample the slot's state (and, for per-track
+//!   gains, its constants) is replaced by the started track's (masked
+//!   blends before that step).
+//!
+//! Every running sample is the scalar `ab_step` with FMA, so each track is
+//! bit-identical to the row kernel and to the scalar lanes, whatever its
+//! region, slot or neighbours.
+
+use std::arch::x86_64::*;
+
+use super::simd::{is_f64, load8, store_line, transpose8};
+use super::{AbConst, IoFloat, TrackState};
+use crate::Result;
+
+const W: usize = 8;
+const LANES: usize = 8;
+/// Blocks (cache lines) of a slot's z prefetched ahead.
+const PREFETCH_BLOCKS: isize = 8;
+
+/// Samples of one block: one 64-byte line of `T`.
+const fn block_len<T>() -> usize {
+    64 / std::mem::size_of::<T>()
+}
+
+/// Per-step replacement of slot states at the first running sample of a
+/// started track.
+struct Inject {
+    mask: [u8; 16],
+    x: [[f64; LANES]; 16],
+    v: [[f64; LANES]; 16],
+    c: [[[f64; LANES]; 4]; 16],
+}
+
+/// Where one slot is.
+#[derive(Clone, Copy)]
+struct Slot {
+    /// First sample of the current block (64-byte aligned output).
+    pos: isize,
+    /// Current track (index into the tracks), and the end of its region.
+    cur: usize,
+    region_end: usize,
+    /// Whether the slot has a region.
+    busy: bool,
+    /// Samples before `skip` are not stored (start-up outputs).
+    skip: isize,
+    /// The current track is running in the slot (its final state is read
+    /// from the block rows at its end).
+    running: bool,
+    /// A started track begins running at sample `inj` (pending).
+    inj: isize,
+    inj_x: f64,
+    inj_v: f64,
+    inj_c: AbConst,
+    /// End of the current track.
+    end: isize,
+}
+
+/// Regions: runs of consecutive tracks of at least `target` samples (a
+/// longer track is a region by itself), longest first.
+fn regions(off: &[usize], target: usize) -> Vec<(usize, usize)> {
+    let n = off.len() - 1;
+    let mut r = Vec::with_capacity(n / 8 + 1);
+    let mut j0 = 0;
+    while j0 < n {
+        let mut j1 = j0 + 1;
+        while j1 < n && off[j1] - off[j0] < target {
+            j1 += 1;
+        }
+        r.push((j0, j1));
+        j0 = j1;
+    }
+    // Longest first (stable: ties keep memory order), so the slots finish
+    // together.
+    r.sort_by_key(|&(a, b)| std::cmp::Reverse(off[b] - off[a]));
+    r
+}
+
+/// The per-track start-up: `start(j, state, z_j, x_j, v_j)` runs track
+/// `j`'s samples until it is running (writing their outputs) and returns
+/// how many it consumed; the track then runs from `state.x` if
+/// `state.phase == 2`.
+pub(super) type Start<'s, T> =
+    dyn FnMut(usize, &mut TrackState, &[T], &mut [T], &mut [T]) -> Result<usize> + 's;
+
+/// Alpha-beta over the tracks `off[j]..off[j+1]` of the flat `z`, `xs`,
+/// `vs` (see the module docs). `konst(j)` gives track `j`'s constants
+/// (`shared`: the same for all); `nt`: non-temporal stores of whole lines.
+///
+/// # Safety
+/// The CPU supports AVX-512F and FMA (`simd::available()`); `T` is `f32`
+/// or `f64`.
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx512f,fma")]
+pub(super) unsafe fn ab_flat<T: IoFloat>(
+    konst: &dyn Fn(usize) -> AbConst,
+    shared: bool,
+    start: &mut Start<'_, T>,
+    off: &[usize],
+    z: &[T],
+    xs: &mut [T],
+    vs: &mut [T],
+    states: &mut [TrackState],
+    nt: bool,
+) -> Result<()> {
+    let n_tracks = states.len();
+    let total = off.last().copied().unwrap_or(0);
+    if off.len() != n_tracks + 1 || z.len() < total || xs.len() < total || vs.len() < total {
+        return Err(crate::Error::Shape(
+            "flat alpha-beta: buffers do not match the offsets".into(),
+        ));
+    }
+    let len = total as isize;
+    let sb = block_len::<T>();
+    let sbi = sb as isize;
+    let halves = sb / W;
+    let es = std::mem::size_of::<T>();
+    // Blocks are aligned to the x output's lines.
+    let mis = ((xs.as_ptr() as usize) % 64 / es) as isize;
+    let align_down = |p: isize| p - (p + mis).rem_euclid(sbi);
+    let v_aligned = (vs.as_ptr() as usize) % 64 == (xs.as_ptr() as usize) % 64;
+    let regs = regions(off, (total / 64).clamp(512, 8192));
+    let mut next_region = 0;
+    let c0 = konst(0);
+    let mut slots = [Slot {
+        pos: 0,
+        cur: 0,
+        region_end: 0,
+        busy: false,
+        skip: 0,
+        running: false,
+        inj: isize::MAX,
+        inj_x: 0.0,
+        inj_v: 0.0,
+        inj_c: c0,
+        end: 0,
+    }; LANES];
+    let mut inject = Inject {
+        mask: [0; 16],
+        x: [[0.0; LANES]; 16],
+        v: [[0.0; LANES]; 16],
+        c: [[[0.0; LANES]; 4]; 16],
+    };
+    let zero = _mm512_setzero_pd();
+    let one = _mm512_set1_pd(1.0);
+    // Per-slot constants (replaced when a track starts running in a slot).
+    let ct = _mm512_set1_pd(c0.t);
+    let calpha = _mm512_set1_pd(c0.alpha);
+    let coma = _mm512_set1_pd(c0.one_minus_alpha);
+    let cg2 = _mm512_set1_pd(c0.g2);
+
+    // Start track `j` (at the start of its region or at a boundary) in slot
+    // `s`; returns the sample at which it runs (`isize::MAX`: never).
+    macro_rules! start_track {
+        ($s:expr, $j:expr) => {{
+            let j: usize = $j;
+            let (a, e) = (off[j], off[j + 1]);
+            // The slot's next tracks' states: the states are touched once
+            // per track, too sparsely for the hardware prefetcher.
+            if let Some(ahead) = states.get(j + 4) {
+                let p = ahead as *const TrackState;
+                super::prefetch(p);
+                super::prefetch(p.wrapping_byte_add(64));
+                // And the output lines its start-up writes.
+                let g = off[j + 4];
+                _mm_prefetch::<_MM_HINT_ET0>(xs.as_ptr().wrapping_add(g) as *const i8);
+                _mm_prefetch::<_MM_HINT_ET0>(vs.as_ptr().wrapping_add(g) as *const i8);
+            }
+            let st = &mut states[j];
+            let n_run = if st.phase >= 2.0 {
+                0
+            } else {
+                start(j, st, &z[a..e], &mut xs[a..e], &mut vs[a..e])?
+            };
+            let q = a + n_run.min(e - a);
+            let sl: &mut Slot = $s;
+            sl.cur = j;
+            sl.end = e as isize;
+            sl.skip = q as isize;
+            if st.phase >= 2.0 && q < e {
+                sl.running = true;
+                sl.inj = q as isize;
+                // Two separate loads: each is forwarded from the start-up's
+                // store (one 16-byte load of both would wait until the
+                // stores, queued behind the start-up's output stores, reach
+                // the cache).
+                // SAFETY: reads of two f64 fields of a live state.
+                unsafe {
+                    sl.inj_x = std::ptr::read_volatile(&st.x[0]);
+                    sl.inj_v = std::ptr::read_volatile(&st.x[1]);
+                }
+                sl.inj_c = if shared { c0 } else { konst(j) };
+            } else {
+                sl.running = false;
+                sl.inj = isize::MAX;
+            }
+        }};
+    }
+    // Give slot `l` its next region (or mark it idle).
+    macro_rules! refill {
+        ($l:expr) => {{
+            let l: usize = $l;
+            if next_region < regs.len() {
+                let (j0, j1) = regs[next_region];
+                next_region += 1;
+                slots[l].busy = true;
+                slots[l].region_end = j1;
+                slots[l].pos = align_down(off[j0] as isize);
+                start_track!(&mut slots[l], j0);
+            } else {
+                slots[l].busy = false;
+            }
+        }};
+    }
+    for l in 0..LANES {
+        refill!(l);
+    }
+    let full: u32 = if sb == 16 { 0xffff } else { 0xff };
+    let mut k = Kern {
+        xv: zero,
+        vv: zero,
+        ct,
+        calpha,
+        coma,
+        cg2,
+        one,
+    };
+    let mut xbuf = [[zero; W]; 2];
+    let mut vbuf = [[zero; W]; 2];
+    let mut caps: Vec<(usize, usize, usize)> = Vec::with_capacity(4 * LANES);
+    let mut tmp = [[T::from_f64(0.0); 16]; LANES];
+    loop {
+        if slots.iter().all(|s| !s.busy) {
+            break;
+        }
+        // Blocks in which no slot has anything but running samples, run
+        // without bookkeeping.
+        let mut n_fast = isize::MAX;
+        for s in slots.iter() {
+            let lim = (s.end - 1).min(s.inj);
+            n_fast = if s.busy && s.pos >= s.skip && lim >= s.pos + sbi {
+                n_fast.min((lim - s.pos) / sbi)
+            } else {
+                0
+            };
+            if n_fast == 0 {
+                break;
+            }
+        }
+        for _ in 0..n_fast {
+            let mut src = [std::ptr::null::<T>(); LANES];
+            for (l, s) in slots.iter().enumerate() {
+                // SAFETY (pointer): pos..pos+sb is inside the current track
+                // (fast blocks end before the track's last sample).
+                src[l] = unsafe { z.as_ptr().offset(s.pos) };
+                super::prefetch(src[l].wrapping_offset(PREFETCH_BLOCKS * sbi));
+            }
+            // SAFETY: every src[l] has sb readable samples.
+            unsafe { compute(&src, halves, &mut k, None, &mut xbuf, &mut vbuf) };
+            for (l, s) in slots.iter_mut().enumerate() {
+                // SAFETY: pos..pos+sb is inside xs and vs; x stores are
+                // line-aligned (blocks follow x's lines), v streamed only if
+                // aligned too.
+                unsafe {
+                    store_line(xs.as_mut_ptr().offset(s.pos), xbuf[0][l], xbuf[1][l], nt);
+                    store_line(
+                        vs.as_mut_ptr().offset(s.pos),
+                        vbuf[0][l],
+                        vbuf[1][l],
+                        nt && v_aligned,
+                    );
+                }
+                s.pos += sbi;
+            }
+        }
+        if n_fast > 0 {
+            continue;
+        }
+        // One block with events: masks (bit p: sample pos + p is stored),
+        // start-ups, starts of running, end-of-track captures.
+        let mut masks = [0u32; LANES];
+        let mut any_inj = false;
+        let mut done = [false; LANES];
+        caps.clear();
+        for l in 0..LANES {
+            let s = &mut slots[l];
+            if !s.busy {
+                continue;
+            }
+            let pos = s.pos;
+            let bend = pos + sbi;
+            // Samples in [pos, skip) are not stored.
+            let mut m = full;
+            let clear = |m: &mut u32, from: isize, to: isize| {
+                let (a, b) = (from.max(pos), to.min(bend));
+                if a < b {
+                    let bits = ((1u64 << (b - a)) - 1) << (a - pos);
+                    *m &= !(bits as u32);
+                }
+            };
+            clear(&mut m, pos, s.skip);
+            loop {
+                // A pending start of running in this block.
+                if s.inj < bend {
+                    let p = (s.inj - pos) as usize;
+                    inject.mask[p] |= 1 << l;
+                    inject.x[p][l] = s.inj_x;
+                    inject.v[p][l] = s.inj_v;
+                    let c = &s.inj_c;
+                    inject.c[p][0][l] = c.t;
+                    inject.c[p][1][l] = c.alpha;
+                    inject.c[p][2][l] = c.one_minus_alpha;
+                    inject.c[p][3][l] = c.g2;
+                    any_inj = true;
+                    s.inj = isize::MAX;
+                }
+                if s.end > bend {
+                    break;
+                }
+                // The current track ends in this block.
+                if s.running {
+                    caps.push((l, (s.end - 1 - pos) as usize, s.cur));
+                }
+                let nxt = s.cur + 1;
+                if nxt >= s.region_end {
+                    clear(&mut m, s.end, bend);
+                    done[l] = true;
+                    break;
+                }
+                start_track!(&mut *s, nxt);
+                clear(&mut m, off[nxt] as isize, s.skip);
+            }
+            masks[l] = m;
+        }
+        let mut src = [std::ptr::null::<T>(); LANES];
+        for (l, s) in slots.iter().enumerate() {
+            let at = s.pos;
+            src[l] = if s.busy && at >= 0 && at + sbi <= len {
+                // SAFETY (pointer): at..at+sb is inside z.
+                unsafe { z.as_ptr().offset(at) }
+            } else {
+                // Partly outside z (or an idle slot): the samples inside.
+                let t = &mut tmp[l];
+                for p in 0..sb {
+                    let g = at + p as isize;
+                    t[p] = if s.busy && g >= 0 && g < len {
+                        z[g as usize]
+                    } else {
+                        T::from_f64(0.0)
+                    };
+                }
+                t.as_ptr()
+            };
+        }
+        let inj = if any_inj { Some(&mut inject) } else { None };
+        // SAFETY: every src[l] has sb readable samples.
+        unsafe {
+            compute(
+                &src,
+                halves,
+                &mut k,
+                inj.map(|i| (i, shared)),
+                &mut xbuf,
+                &mut vbuf,
+            )
+        };
+        for l in 0..LANES {
+            let s = &slots[l];
+            let m = masks[l];
+            if !s.busy || m == 0 {
+                continue;
+            }
+            let pos = s.pos;
+            let inside = pos >= 0 && pos + sbi <= len;
+            if m == full && inside {
+                // SAFETY: as in the fast blocks.
+                unsafe {
+                    store_line(xs.as_mut_ptr().offset(pos), xbuf[0][l], xbuf[1][l], nt);
+                    store_line(
+                        vs.as_mut_ptr().offset(pos),
+                        vbuf[0][l],
+                        vbuf[1][l],
+                        nt && v_aligned,
+                    );
+                }
+            } else if inside {
+                // SAFETY: the line is inside the outputs; masked-off samples
+                // are not written.
+                unsafe {
+                    store_masked(xs.as_mut_ptr().offset(pos), xbuf[0][l], xbuf[1][l], m);
+                    store_masked(vs.as_mut_ptr().offset(pos), vbuf[0][l], vbuf[1][l], m);
+                }
+            } else {
+                let xr = rows_of(&xbuf, l);
+                let vr = rows_of(&vbuf, l);
+                for p in 0..sb {
+                    if m & (1 << p) != 0 {
+                        let g = (pos + p as isize) as usize;
+                        xs[g] = T::from_f64(xr[p]);
+                        vs[g] = T::from_f64(vr[p]);
+                    }
+                }
+            }
+        }
+        // Final states of the tracks that ended in this block.
+        for &(l, p, j) in caps.iter() {
+            let xr = rows_of(&xbuf, l);
+            let vr = rows_of(&vbuf, l);
+            states[j].x[0] = xr[p];
+            states[j].x[1] = vr[p];
+        }
+        for l in 0..LANES {
+            if done[l] {
+                refill!(l);
+            } else if slots[l].busy {
+                slots[l].pos += sbi;
+            }
+        }
+    }
+    if nt {
+        _mm_sfence();
+    }
+    Ok(())
+}
+
+/// The running state and constants of the eight slots.
+struct Kern {
+    xv: __m512d,
+    vv: __m512d,
+    ct: __m512d,
+    calpha: __m512d,
+    coma: __m512d,
+    cg2: __m512d,
+    one: __m512d,
+}
+
+/// One block: `sb = 8 * halves` samples of every slot from `src[l]`,
+/// transposed, run (with the slot replacements of `inj`, whose masks are
+/// cleared), and transposed back into `xbuf`, `vbuf` (row `l`: slot `l`'s
+/// estimates, `f64`).
+///
+/// # Safety
+/// AVX-512F and FMA are available; `T` is `f32` or `f64`; each `src[l]`
+/// points to `8 * halves` readable samples.
+#[inline(always)]
+unsafe fn compute<T: IoFloat>(
+    src: &[*const T; LANES],
+    halves: usize,
+    k: &mut Kern,
+    inj: Option<(&mut Inject, bool)>,
+    xbuf: &mut [[__m512d; W]; 2],
+    vbuf: &mut [[__m512d; W]; 2],
+) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        let mut inj = inj;
+        for h in 0..halves {
+            let mut rows: [__m512d; W] = std::array::from_fn(|l| load8(src[l].add(h * W)));
+            transpose8(&mut rows);
+            let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
+            for j in 0..W {
+                if let Some((inject, shared)) = inj.as_mut() {
+                    let p = h * W + j;
+                    let m = inject.mask[p];
+                    if m != 0 {
+                        k.xv = _mm512_mask_loadu_pd(k.xv, m, inject.x[p].as_ptr());
+                        k.vv = _mm512_mask_loadu_pd(k.vv, m, inject.v[p].as_ptr());
+                        if !*shared {
+                            k.ct = _mm512_mask_loadu_pd(k.ct, m, inject.c[p][0].as_ptr());
+                            k.calpha = _mm512_mask_loadu_pd(k.calpha, m, inject.c[p][1].as_ptr());
+                            k.coma = _mm512_mask_loadu_pd(k.coma, m, inject.c[p][2].as_ptr());
+                            k.cg2 = _mm512_mask_loadu_pd(k.cg2, m, inject.c[p][3].as_ptr());
+                        }
+                        inject.mask[p] = 0;
+                    }
+                }
+                let zj = rows[j];
+                let xp = _mm512_fmadd_pd(k.ct, k.vv, k.xv);
+                let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
+                let zz = _mm512_maskz_mov_pd(valid, zj);
+                let c1 = _mm512_mask_blend_pd(valid, k.one, k.coma);
+                let g = _mm512_maskz_mov_pd(valid, k.cg2);
+                let w = _mm512_fmadd_pd(g, zz, k.vv);
+                k.xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(k.calpha, zz));
+                k.vv = _mm512_fnmadd_pd(g, xp, w);
+                xo[j] = k.xv;
+                vo[j] = k.vv;
+            }
+            transpose8(xo);
+            transpose8(vo);
+        }
+    }
+}
+
+/// The `f64` values of slot `l` in a transposed block (8 or 16 samples).
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn rows_of(buf: &[[__m512d; W]; 2], l: usize) -> [f64; 16] {
+    let mut r = [0.0; 16];
+    // SAFETY: a plain array of 16 f64.
+    unsafe {
+        _mm512_storeu_pd(r.as_mut_ptr(), buf[0][l]);
+        _mm512_storeu_pd(r.as_mut_ptr().add(8), buf[1][l]);
+    }
+    r
+}
+
+/// Store the samples of a line whose bit is set in `m` (`f64`: the 8 of
+/// `a`; `f32`: the 16 of `a` then `b`, narrowed).
+///
+/// # Safety
+/// `T` is `f64` or `f32`; the line at `p` is inside the output.
+#[inline]
+#[target_feature(enable = "avx512f")]
+unsafe fn store_masked<T: 'static>(p: *mut T, a: __m512d, b: __m512d, m: u32) {
+    // SAFETY: forwarded from the caller; masked-off elements are not
+    // accessed.
+    unsafe {
+        if is_f64::<T>() {
+            _mm512_mask_storeu_pd(p as *mut f64, m as u8, a)
+        } else {
+            let lo = _mm256_castps_pd(_mm512_cvtpd_ps(a));
+            let hi = _mm256_castps_pd(_mm512_cvtpd_ps(b));
+            let line = _mm512_castpd_ps(_mm512_insertf64x4::<1>(_mm512_castpd256_pd512(lo), hi));
+            _mm512_mask_storeu_ps(p as *mut f32, m as u16, line)
+        }
+    }
+}
