@@ -111,6 +111,14 @@ def check_no_inf(z3: np.ndarray, off: np.ndarray) -> None:
     Scanned in blocks: no temporary of the size of ``z``."""
     n0, n1 = z3.shape[0], z3.shape[1]
     block = 1 << 16
+    if z3.flags.c_contiguous:
+        # Flat blocks (a trailing axis of length 1 makes np.isinf slow).
+        flat = z3.reshape(-1)
+        for g0 in range(0, flat.size, block):
+            if np.isinf(flat[g0 : g0 + block]).any():
+                break
+        else:
+            return
     per = max(1, block // max(n1, 1))
     for i0 in range(0, n0, per):
         for j0 in range(0, n1, block):
@@ -122,6 +130,40 @@ def check_no_inf(z3: np.ndarray, off: np.ndarray) -> None:
                 track = int(np.searchsorted(off, r, side="right")) - 1
                 val = float(blk[a, b][np.isinf(blk[a, b])][0])
                 raise ValueError(f"track {track}, sample {r - int(off[track])}: z must be finite or NaN (a missed detection), got {val!r}")
+
+
+def check_no_inf_after(f: "FixedGainFilter", z3: np.ndarray, off: np.ndarray, packed: np.ndarray) -> None:
+    """After a run without timestamps (no restarts): the ``check_no_inf``
+    error, found from the final states. A ``+-Inf`` measurement leaves its
+    track's state non-finite to the end of the track (it enters every
+    later estimate: NaN measurements are missed detections and never do),
+    so only tracks whose final state is not finite are scanned; O(n_tracks)
+    otherwise. Also the overflow error of the row kernels
+    (``check_tracks_finite``) unless ``f.allow_unstable``."""
+    ph = packed[:, _NMAX]
+    with np.errstate(over="ignore", invalid="ignore"):
+        s = np.where(ph == 1, packed[:, 0], packed[:, : f.n].sum(axis=1))
+    sus = (ph > 0) & ~np.isfinite(s)
+    if not sus.any():
+        return
+    x = np.where((ph == 1)[:, None], packed[:, :1], packed[:, : f.n])
+    bad = np.flatnonzero(sus & ~np.all(np.isfinite(x), axis=1))
+    flat = z3.shape[0] != len(off) - 1  # a ragged (1, N, m) batch
+    for i in bad:
+        seg = z3[0, int(off[i]) : int(off[i + 1])] if flat else z3[i]
+        inf = np.argwhere(np.isinf(seg))
+        if inf.size:
+            k = int(inf[0][0])
+            val = float(seg[tuple(inf[0])])
+            raise ValueError(f"track {int(i)}, sample {k}: z must be finite or NaN (a missed detection), got {val!r}")
+    if bad.size and not f.allow_unstable:
+        i = int(bad[0])
+        seg = z3[0, int(off[i]) : int(off[i + 1])] if flat else z3[i]
+        big = float(np.nanmax(np.abs(seg))) if seg.size else float("nan")
+        raise ValueError(
+            f"the estimates of track {i} overflowed float64: z values up to {big:.3g} are too large "
+            "for this filter; rescale z"
+        )
 
 
 def run_tracks(
@@ -168,7 +210,10 @@ def run_tracks(
         off = np.arange(n_tracks + 1, dtype=np.int64) * n_samples
         sample_shape = (n_samples,) if single else (n_tracks, n_samples)
     z3 = _aligned(z3)
-    check_no_inf(z3, off)
+    if t is not None:
+        # With timestamps a track may restart (max_gap) and forget an Inf:
+        # scan z first.
+        check_no_inf(z3, off)
     f._check_params(n_tracks)
     t_arr = None
     t2 = None
@@ -202,6 +247,8 @@ def run_tracks(
         float(tn[0]), init_mode, gap, drop, packed, out2, counts, res2,
         None if threads is None else int(threads), smoother, smoother_params, lag,
     )
+    if t is None:
+        check_no_inf_after(f, z3, off, packed)
     residuals = None
     if res2 is not None:
         residuals = res2.reshape(shape + ((m,) if m > 1 else ()))

@@ -1928,6 +1928,45 @@ fn ab_flat_batch<T: IoFloat>(
     Some(res.into_iter().collect())
 }
 
+/// Start-up callback of [`ab_tracks_flat`] (see `flat::Start`).
+#[cfg(target_arch = "x86_64")]
+pub(crate) use flat::Start as FlatStart;
+
+/// For [`crate::ragged`]: alpha-beta over the back-to-back tracks
+/// `off[j]..off[j+1]` of the flat `z`, `xs`, `vs` with the flat vector
+/// kernel, gains `(T, alpha, g = beta / T)` per track (or one for all).
+/// `None` where the kernel does not run (no AVX-512, another `T`).
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn ab_tracks_flat<T: IoFloat>(
+    gains: &[(f64, f64, f64)],
+    start: &mut FlatStart<'_, T>,
+    off: &[usize],
+    z: &[T],
+    xs: &mut [T],
+    vs: &mut [T],
+    states: &mut [TrackState],
+) -> Option<Result<()>> {
+    if !(uses_fma() && simd::available() && simd::fits::<T>(0, 32)) || gains.is_empty() {
+        return None;
+    }
+    let total = off.last().copied().unwrap_or(0);
+    let nt = streamed::<T>(2 * total * std::mem::size_of::<T>(), true);
+    let shared = gains.len() == 1;
+    let konst = |j: usize| {
+        let (t, a, g) = gains[if shared { 0 } else { j }];
+        AbConst {
+            t,
+            alpha: a,
+            one_minus_alpha: 1.0 - a,
+            g2: g,
+        }
+    };
+    // SAFETY: `simd::available()` checked AVX-512F and FMA; T is f32 or f64
+    // (`fits`).
+    Some(unsafe { flat::ab_flat(&konst, shared, start, off, z, xs, vs, states, nt) })
+}
+
 fn check_params<T>(n_params: usize, z: &Measurements<'_, T>) -> Result<()> {
     if n_params == 1 || n_params == z.n_tracks {
         Ok(())

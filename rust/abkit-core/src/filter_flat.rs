@@ -99,7 +99,7 @@ fn regions(off: &[usize], target: usize) -> Vec<(usize, usize)> {
 /// `j`'s samples until it is running (writing their outputs) and returns
 /// how many it consumed; the track then runs from `state.x` if
 /// `state.phase == 2`.
-pub(super) type Start<'s, T> =
+pub(crate) type Start<'s, T> =
     dyn FnMut(usize, &mut TrackState, &[T], &mut [T], &mut [T]) -> Result<usize> + 's;
 
 /// Alpha-beta over the tracks `off[j]..off[j+1]` of the flat `z`, `xs`,

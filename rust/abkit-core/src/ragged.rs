@@ -428,6 +428,12 @@ pub fn filter_tracks<
     if n_tracks == 0 {
         return Ok(());
     }
+    #[cfg(target_arch = "x86_64")]
+    if t.is_none() && resid.is_none() && N == 2 && M == 1 {
+        if let Some(r) = flat_tracks(filt, opts, &off, z, states, out, counts, parallel, post) {
+            return r;
+        }
+    }
     // Split the outputs into per-block slices.
     let plan = plan_blocks(&off);
     let mut rows: Vec<&mut [T]> = if n_total == 0 {
@@ -475,6 +481,135 @@ pub fn filter_tracks<
         blocks.iter_mut().map(run).collect()
     };
     results.into_iter().collect()
+}
+
+/// Alpha-beta without timestamps on contiguous samples: the flat vector
+/// kernel of [`crate::filter`] (slots walking runs of back-to-back tracks),
+/// with this module's start-up ([`track_tv`] until the track runs) and
+/// post-processing. The same arithmetic per track as [`run_block_lanes`]
+/// (bit-identical). `None` where it does not apply.
+#[cfg(target_arch = "x86_64")]
+fn flat_tracks<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize, const M: usize>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    off: &[usize],
+    z: &Samples<'_, T>,
+    states: &mut [TrackState],
+    out: &mut [T],
+    counts: &mut [Counts],
+    parallel: bool,
+    post: &P,
+) -> Option<Result<()>> {
+    let n_total = z.len();
+    let contiguous = z.s_sample == 1 && (z.n_rows <= 1 || z.s_row == z.row_len as isize);
+    if N != 2 || M != 1 || z.m != 1 || !contiguous || n_total == 0 {
+        return None;
+    }
+    let zs = z.data.get(z.base..z.base.checked_add(n_total)?)?;
+    let mut gains = Vec::with_capacity(filt.laws.len());
+    for law in filt.laws {
+        let (a, g) = law.clone().ab_gains(opts.t_nominal)?;
+        if !(a.is_finite() && g.is_finite()) {
+            return None;
+        }
+        gains.push((opts.t_nominal, a, g));
+    }
+    let n_tracks = states.len();
+    let (xs, rest) = out.split_at_mut(n_total);
+    let vs = rest.get_mut(..n_total)?;
+    // Chunks of whole tracks (the unit of parallel work); results do not
+    // depend on the chunking.
+    let threads = if parallel {
+        rayon::current_num_threads()
+    } else {
+        1
+    };
+    let target = if threads > 1 {
+        (n_total / (4 * threads)).max(1 << 18)
+    } else {
+        n_total
+    };
+    type Chunk<'c, T> = (
+        usize,
+        usize,
+        &'c mut [TrackState],
+        &'c mut [Counts],
+        &'c mut [T],
+        &'c mut [T],
+    );
+    let mut chunks: Vec<Chunk<'_, T>> = Vec::new();
+    let (mut st_rest, mut ct_rest, mut x_rest, mut v_rest) = (states, counts, xs, vs);
+    let mut j0 = 0;
+    while j0 < n_tracks {
+        let mut j1 = j0 + 1;
+        while j1 < n_tracks && off[j1] - off[j0] < target {
+            j1 += 1;
+        }
+        let len = off[j1] - off[j0];
+        let (a, b) = std::mem::take(&mut st_rest).split_at_mut(j1 - j0);
+        let (ca, cb) = std::mem::take(&mut ct_rest).split_at_mut(j1 - j0);
+        let (xa, xb) = std::mem::take(&mut x_rest).split_at_mut(len);
+        let (va, vb) = std::mem::take(&mut v_rest).split_at_mut(len);
+        chunks.push((j0, j1, a, ca, xa, va));
+        (st_rest, ct_rest, x_rest, v_rest) = (b, cb, xb, vb);
+        j0 = j1;
+    }
+    let run = |(j0, j1, st, ct, xs, vs): Chunk<'_, T>| -> Option<Result<()>> {
+        let base = off[j0];
+        let loc: Vec<usize> = off[j0..=j1].iter().map(|&o| o - base).collect();
+        let g = if gains.len() == 1 {
+            &gains[..]
+        } else {
+            &gains[j0..j1]
+        };
+        let mut start = |j: usize, s: &mut TrackState, zr: &[T], xr: &mut [T], vr: &mut [T]| {
+            let i = j0 + j;
+            let mut law = filt.laws[if filt.laws.len() == 1 { 0 } else { i }].clone();
+            let mut it = [xr, vr].into_iter();
+            let comps: [&mut [T]; N] = std::array::from_fn(|_| it.next().unwrap_or_default());
+            let mut o = TrackOut {
+                states: comps,
+                resid: None,
+            };
+            let zf = |k: usize| -> [f64; M] { std::array::from_fn(|_| zr[k].to_f64()) };
+            track_tv::<T, L, N, M, true>(
+                &mut law,
+                &filt.h,
+                &filt.h_pinv,
+                opts,
+                s,
+                zr.len(),
+                zf,
+                None::<&fn(usize) -> f64>,
+                &mut o,
+                &mut ct[j],
+                i,
+                0,
+                true,
+            )
+        };
+        let zc = &zs[base..off[j1]];
+        let r = crate::filter::ab_tracks_flat(g, &mut start, &loc, zc, xs, vs, st)?;
+        Some(r.and_then(|()| {
+            for j in 0..j1 - j0 {
+                let (a, e) = (loc[j], loc[j + 1]);
+                let mut it = [&mut xs[a..e], &mut vs[a..e]].into_iter();
+                let mut comps: [&mut [T]; N] =
+                    std::array::from_fn(|_| it.next().unwrap_or_default());
+                post.post(j0 + j, &mut comps, None, None)?;
+            }
+            Ok(())
+        }))
+    };
+    let res: Vec<Option<Result<()>>> = if parallel && chunks.len() > 1 {
+        chunks.into_par_iter().map(run).collect()
+    } else {
+        chunks.into_iter().map(run).collect()
+    };
+    // `None` from a chunk: the kernel is not available (then for none).
+    res.into_iter()
+        .collect::<Option<Vec<_>>>()
+        .map(|v| v.into_iter().collect())
 }
 
 fn run_block_dispatch<
