@@ -1,0 +1,229 @@
+"""The flat alpha-beta vector kernel (rust/abkit-core/src/filter_flat.rs):
+short rows (fewer than 256 samples) of a batch, and ragged batches without
+timestamps, run as one flat sequence of back-to-back tracks whose vector
+slots cross track boundaries (scalar start-ups, masked stores, state
+replacement at the first running sample, final states read at the last).
+
+It runs only without residuals, so ``run(z)`` (flat kernel) is compared
+with ``run(z, return_residuals=True)`` (the scalar per-track loop): the
+arithmetic per running sample is the same, so the states must be
+**bit-identical**, and both match the independent NumPy reference
+(tests/filterref.py; float64 within 1e-12 of the array's scale, float32
+within 0.5 ulp + 1e-12 of the scale). The ragged case is also compared with
+the scalar track kernel of another process (``ABKIT_DISABLE_SIMD=1``).
+
+Cases: row lengths 1..255 (every alignment and block position of the
+boundaries), tracks shorter than a block, many tracks (several regions per
+slot and slot refills), NaN patterns incl. NaN-led and all-NaN tracks
+(start-ups longer than a block), per-track gains, every init mode, streaming
+with state=, outputs >= 64 MiB (non-temporal stores), smoothing, +-Inf
+measurements.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import filterref as fr
+from abkit import AlphaBetaFilter
+from test_filters_compliance import assert_f32_rounded
+
+RTOL = 1e-12
+
+
+def _z(rng, shape, pattern, dtype):
+    z = np.cumsum(rng.normal(0, 1.0, shape), axis=-1) + rng.normal(0, 0.5, shape)
+    flat = z.reshape(-1)
+    if pattern == "random":
+        flat[rng.random(flat.size) < 0.1] = np.nan
+    elif pattern == "dense":
+        flat[rng.random(flat.size) < 0.7] = np.nan
+    elif pattern == "runs":
+        for _ in range(max(1, flat.size // 50)):
+            a = int(rng.integers(0, flat.size))
+            flat[a : a + int(rng.integers(1, 30))] = np.nan
+    return z.astype(dtype)
+
+
+def _check(f, z, **kw):
+    flat = f.run(z, **kw)
+    scalar = f.run(z, return_residuals=True, **kw)
+    assert np.array_equal(flat.states, scalar.states, equal_nan=True)
+    assert np.array_equal(flat.state.x, scalar.state.x, equal_nan=True)
+    assert np.array_equal(flat.state._packed, scalar.state._packed, equal_nan=True)
+    return flat
+
+
+CASES = [
+    (ntr, n, pat, dt)
+    for ntr, n in [(1, 1), (3, 2), (50, 1), (41, 3), (97, 7), (130, 9), (64, 16), (33, 17), (300, 31), (257, 100), (90, 255)]
+    for pat in ["none", "random", "dense", "runs"]
+    for dt in [np.float64, np.float32]
+]
+
+
+@pytest.mark.parametrize("ntr,n,pattern,dtype", CASES)
+def test_short_rows_bit_identical_to_scalar_and_match_reference(ntr, n, pattern, dtype):
+    rng = np.random.default_rng(ntr * 1000 + n)
+    z = _z(rng, (ntr, n), pattern, dtype)
+    a, b = 0.45, 0.2
+    f = AlphaBetaFilter(a, b, 0.1)
+    r = _check(f, z)
+    s, _, _ = fr.run_ref(z, fr.ab_model(a, b, 0.1), "two-point")
+    if dtype == np.float64:
+        fr.assert_states_close(r.states, s, RTOL)
+    else:
+        assert_f32_rounded(r.states, s)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("init", ["two-point", "first", "array"])
+def test_short_rows_per_track_gains_and_inits(dtype, init):
+    rng = np.random.default_rng(21)
+    ntr, n = 700, 37
+    z = _z(rng, (ntr, n), "random", dtype)
+    z[::11, :5] = np.nan  # NaN-led tracks
+    z[::29] = np.nan  # all-NaN tracks
+    a = rng.uniform(0.05, 0.95, ntr)
+    b = rng.uniform(0.01, 0.5, ntr) * a
+    T = rng.uniform(0.01, 5.0, ntr)
+    iv = rng.normal(0, 3, (ntr, 2)) if init == "array" else init
+    _check(AlphaBetaFilter(a, b, T), z, init=iv)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_short_rows_streaming_bit_identical(dtype):
+    rng = np.random.default_rng(23)
+    z = _z(rng, (500, 200), "runs", dtype)
+    f = AlphaBetaFilter(0.6, 0.25, 0.5)
+    whole = f.run(z)
+    parts, st = [], None
+    for a, b in [(0, 1), (1, 2), (2, 9), (9, 77), (77, 200)]:
+        r = f.run(z[:, a:b], state=st)
+        parts.append(r.states)
+        st = r.state
+    assert np.array_equal(np.concatenate(parts, axis=2), whole.states, equal_nan=True)
+    assert np.array_equal(st._packed, whole.state._packed, equal_nan=True)
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_short_rows_threads_bit_identical(threads):
+    rng = np.random.default_rng(25)
+    z = _z(rng, (6000, 50), "random", np.float64)
+    f = AlphaBetaFilter(0.5, 0.1, 1.0)
+    assert np.array_equal(f.run(z, threads=threads).states, f.run(z, threads=1).states, equal_nan=True)
+
+
+@pytest.mark.parametrize("dtype,n", [(np.float64, 100), (np.float32, 200)])
+def test_short_rows_large_output_streamed(dtype, n):
+    # 2 x 42,000 x n outputs >= 64 MiB: non-temporal stores of whole lines.
+    rng = np.random.default_rng(27)
+    ntr = 42_000 if dtype == np.float64 else 42_000
+    z = _z(rng, (ntr, n), "random", dtype)
+    f = AlphaBetaFilter(0.4, 0.1, 1.0)
+    flat = f.run(z)
+    idx = np.r_[0:9, 20_000:20_017, ntr - 10 : ntr]
+    scalar = f.run(z[idx], return_residuals=True)
+    assert np.array_equal(flat.states[:, idx], scalar.states, equal_nan=True)
+    out = np.empty_like(flat.states)
+    again = f.run(z, out=out)
+    assert again.states is out and np.array_equal(out, flat.states, equal_nan=True)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_short_rows_smooth_bit_identical(dtype):
+    rng = np.random.default_rng(29)
+    z = _z(rng, (300, 60), "random", dtype)
+    f = AlphaBetaFilter(0.5, 0.15, 0.2)
+    a = f.smooth(z)
+    b = f.smooth(z, return_residuals=True)
+    assert np.array_equal(a.states, b.states, equal_nan=True)
+
+
+def _ragged(rng, max_len, n_tracks, dtype, pattern):
+    lens = rng.integers(0, max_len + 1, n_tracks)
+    lens[rng.random(n_tracks) < 0.05] = 0
+    off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    z = _z(rng, (int(off[-1]),), pattern, dtype)
+    return z, off
+
+
+RAGGED = [(ml, nt, pat, dt) for ml, nt in [(3, 400), (12, 300), (40, 200), (300, 60), (3000, 12)] for pat in ["none", "random", "runs"] for dt in [np.float64, np.float32]]
+
+
+@pytest.mark.parametrize("max_len,n_tracks,pattern,dtype", RAGGED)
+def test_ragged_bit_identical_to_scalar_and_to_each_track_alone(max_len, n_tracks, pattern, dtype):
+    rng = np.random.default_rng(max_len * 7 + n_tracks)
+    z, off = _ragged(rng, max_len, n_tracks, dtype, pattern)
+    f = AlphaBetaFilter.from_noise(1.5, 4.0, 0.1)
+    r = _check(f, z, offsets=off)
+    for i in rng.choice(n_tracks, 8, replace=False):
+        a, b = int(off[i]), int(off[i + 1])
+        if b > a:
+            alone = f.run(z[a:b], return_residuals=True)
+            assert np.array_equal(r.states[:, a:b], alone.states, equal_nan=True)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_ragged_per_track_gains_inits_smooth(dtype):
+    rng = np.random.default_rng(31)
+    z, off = _ragged(rng, 50, 500, dtype, "random")
+    n = len(off) - 1
+    f = AlphaBetaFilter(rng.uniform(0.1, 0.9, n), rng.uniform(0.01, 0.1, n), 0.3)
+    for init in ["two-point", "first"]:
+        _check(f, z, offsets=off, init=init)
+    a = f.smooth(z, offsets=off)
+    b = f.smooth(z, offsets=off, return_residuals=True)
+    assert np.array_equal(a.states, b.states, equal_nan=True)
+
+
+def test_ragged_inf_named_after_the_run():
+    rng = np.random.default_rng(33)
+    z, off = _ragged(rng, 30, 100, np.float64, "random")
+    f = AlphaBetaFilter(0.5, 0.1, 1.0)
+    i = int(np.flatnonzero(np.diff(off) > 10)[3])
+    z[off[i] + 7] = -np.inf
+    with pytest.raises(ValueError, match=rf"track {i}, sample 7: z must be finite or NaN \(a missed detection\), got -inf"):
+        f.run(z, offsets=off)
+    # an Inf as the first (start-up) sample of a track, too
+    z[off[i] + 7] = 1.0
+    z[off[i]] = np.inf
+    with pytest.raises(ValueError, match=rf"track {i}, sample 0: .* got inf"):
+        f.run(z, offsets=off)
+
+
+def test_flat_kernel_equals_scalar_track_kernel_bitwise(tmp_path):
+    # The same short rows and ragged batch in a process with the vector
+    # kernels switched off (ABKIT_DISABLE_SIMD=1: scalar lanes and the
+    # scalar track kernel) gives the same bits.
+    code = r"""
+import sys, numpy as np
+from abkit import AlphaBetaFilter
+rng = np.random.default_rng(5)
+res = {}
+for k, dt in enumerate([np.float64, np.float32]):
+    z = rng.normal(size=(3000, 45)).cumsum(1).astype(dt)
+    z[rng.random(z.shape) < 0.1] = np.nan
+    res[f"rows{k}"] = AlphaBetaFilter(0.4, 0.1, 0.5).run(z).states
+    lens = rng.integers(0, 200, 700)
+    off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    zr = rng.normal(size=int(off[-1])).cumsum().astype(dt)
+    zr[rng.random(zr.size) < 0.1] = np.nan
+    r = AlphaBetaFilter.from_noise(2.0, 5.0, 0.1).run(zr, offsets=off)
+    res[f"ragged{k}"] = r.states
+    res[f"state{k}"] = r.state._packed
+np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
+"""
+    for tag, extra in (("on", {}), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
+        e = dict(os.environ)
+        e.pop("ABKIT_DISABLE_SIMD", None)
+        e.update(extra)
+        subprocess.run([sys.executable, "-c", code, str(tmp_path), tag], check=True, env=e)
+    on, off = np.load(tmp_path / "on.npz"), np.load(tmp_path / "off.npz")
+    for k in on.files:
+        assert np.array_equal(on[k], off[k], equal_nan=True), k
