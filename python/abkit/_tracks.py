@@ -309,3 +309,82 @@ def run_axes(f: "FixedGainFilter", z: Any, axes: Any, *, t: Any, offsets: Any, s
         n_restarts=r0.n_restarts,
         t=r0.t,
     )
+
+
+def run_feed(
+    f: "FixedGainFilter",
+    zs: Any,
+    t: Optional[np.ndarray],
+    codes: np.ndarray,
+    n_tracks: int,
+    *,
+    max_gap: Any = None,
+    on_duplicate: Any = "raise",
+    init: Any = "two-point",
+    return_residuals: bool = True,
+    threads: Optional[int] = None,
+) -> Tuple[np.ndarray, Optional[np.ndarray], np.ndarray, np.ndarray]:
+    """A feed of reports in arrival order (rows of many tracks interleaved)
+    through the row kernel (``abkit-core`` module ``feed``): row ``r`` is a
+    report of track ``codes[r]`` (``0 <= code < n_tracks``) with the values
+    ``zs[c][r]`` of scalar-measurement columns ``c`` (one dtype) at time
+    ``t[r]``. Equal, bit for bit, to running the rows grouped by track (in
+    row order within each track) through :func:`run_tracks`, without
+    reordering anything: estimates and residuals come out in row order.
+
+    Returns ``(states (n_columns, n, n_rows), residuals (n_columns, n_rows)
+    or None, counts (n_tracks, 2) [n_dropped, n_restarts] of column 0,
+    rows (n_tracks, 2) [n_rows, first row])``. A data error raises
+    ``ValueError`` whose message starts ``column c: track i, sample k``
+    (``k``: the sample within the track)."""
+    if f.m != 1:
+        raise ValueError("the feed kernel runs scalar-measurement filters (m = 1)")
+    if f._transient is not None:
+        raise ValueError("transient='kalman' does not support t, offsets, axes, max_gap or on_duplicate")
+    if threads is not None and (not isinstance(threads, (int, np.integer)) or isinstance(threads, bool) or threads < 1):
+        raise ValueError(f"threads must be a positive integer or None, got {threads!r}")
+    drop = check_on_duplicate(on_duplicate)
+    gap = check_max_gap(max_gap, t is not None)
+    cols = [_aligned(_z_dtype(z)) for z in zs]
+    codes = np.ascontiguousarray(codes, dtype=np.int64)
+    n_rows = codes.size
+    if not cols or any(z.ndim != 1 or z.size != n_rows for z in cols) or len({z.dtype for z in cols}) != 1:
+        raise ValueError("zs must be 1-D columns of one dtype, one value per row")
+    dt = cols[0].dtype
+    for c, z in enumerate(cols):
+        # (a restart after a gap forgets an Inf: scan for it first)
+        one = z[None, :, None]
+        try:
+            check_no_inf(one, np.array([0, n_rows]))
+        except ValueError:
+            r = int(np.flatnonzero(np.isinf(z))[0])
+            i = int(codes[r])
+            k = int(np.count_nonzero(codes[:r] == i))
+            raise ValueError(f"column {c}: track {i}, sample {k}: z must be finite or NaN (a missed detection), got {float(z[r])!r}") from None
+    f._check_params(n_tracks)
+    if t is not None:
+        t = _aligned(check_t(t, (n_rows,)))
+        law, params = f._time_law()
+    elif f._tv_law is not None and f._tv_law[0] in ("ab-fixed", "ab-design"):
+        law, params = "ab-fixed", f._params[:, :2]  # type: ignore[attr-defined]
+    else:
+        law = "constant"
+        params = np.concatenate([f._phi.reshape(f.n_params, -1), f._k.reshape(f.n_params, -1)], axis=1)
+    tn = f._t
+    if not np.all(tn == tn[0]):
+        raise ValueError("a feed needs one sampling period T for all tracks (the filter has per-track T)")
+    packed, init_mode = f._initial_state(init, None, n_tracks)
+    packed[:, T_LAST] = np.nan
+    packed[:, T_HELD] = np.nan
+    state = np.ascontiguousarray(np.tile(packed, (len(cols), 1)))
+    out = np.empty((len(cols), f.n, n_rows), dtype=dt)
+    res = np.empty((len(cols), n_rows), dtype=dt) if return_residuals else None
+    counts = np.zeros((n_tracks, 2), dtype=np.int64)
+    rows = np.zeros((n_tracks, 2), dtype=np.int64)
+    _abkit.filter_feed(
+        cols, t, codes, f.n, law, np.ascontiguousarray(params, dtype=np.float64).reshape(-1),
+        np.ascontiguousarray(f._h[0]).reshape(-1), np.ascontiguousarray(f._hpinv[0]).reshape(-1),
+        float(tn[0]), init_mode, gap, drop, state, out, counts, rows, res,
+        None if threads is None else int(threads),
+    )
+    return out, res, counts, rows

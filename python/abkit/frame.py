@@ -30,8 +30,8 @@ class FrameSummary:
     Attributes
     ----------
     ids : ndarray
-        Track ids, in the order the tracks were run (first appearance when
-        the frame was grouped, else sorted by id code).
+        Track ids, in order of first appearance in the frame (polars
+        without pyarrow: sorted).
     n_rows, n_dropped, n_restarts : ndarray of int64, shape (n_tracks,)
         Rows of each track, reports dropped as duplicates
         (``on_duplicate="drop"``), and restarts after gaps (``max_gap``).
@@ -69,12 +69,15 @@ class Grouping:
     """Rows grouped by track and ordered by time: ``order`` (None when the
     input already is) and the ragged ``offsets`` in that order."""
 
-    __slots__ = ("order", "offsets", "n")
+    __slots__ = ("order", "offsets", "n", "feed")
 
-    def __init__(self, order: Optional[np.ndarray], offsets: np.ndarray, n: int):
+    def __init__(self, order: Optional[np.ndarray], offsets: np.ndarray, n: int, feed: Optional[np.ndarray] = None):
         self.order = order
         self.offsets = offsets
         self.n = n
+        #: The track codes when the rows are run as a feed in row order
+        #: (:func:`group` with ``feed=True``; ``order`` and ``offsets`` unused).
+        self.feed = feed
 
     def take(self, a: np.ndarray) -> np.ndarray:
         return a if self.order is None else a[self.order]
@@ -92,6 +95,8 @@ class Grouping:
         return out
 
     def row(self, track: int, sample: int) -> int:
+        if self.feed is not None:
+            return int(np.flatnonzero(self.feed == track)[sample])
         i = int(self.offsets[track]) + sample
         return i if self.order is None else int(self.order[i])
 
@@ -111,12 +116,14 @@ def _stable_order(codes: np.ndarray, k: int) -> np.ndarray:
     return order
 
 
-def group(codes: np.ndarray, t: Optional[np.ndarray]) -> Grouping:
+def group(codes: np.ndarray, t: Optional[np.ndarray], feed: bool = False) -> Grouping:
     """Group rows by non-negative integer track ``codes`` (any injective
     coding of the ids) and order them by ``t`` within a track (stable: ties
     keep the row order). No permutation when the rows are already grouped
     and ordered; a linear-time radix sort when only the grouping is
-    missing (e.g. a feed ordered by time, tracks interleaved)."""
+    missing (e.g. a feed ordered by time, tracks interleaved). With
+    ``feed=True`` rows that are not grouped but ordered by ``t`` are left
+    as they are, for the row kernel (``Grouping.feed`` holds the codes)."""
     n = int(codes.size)
     if n == 0:
         return Grouping(None, np.zeros(1, dtype=np.int64), 0)
@@ -130,6 +137,10 @@ def group(codes: np.ndarray, t: Optional[np.ndarray]) -> Grouping:
         ok = not bool(np.any((np.diff(t) < 0) & ~change))
     if ok:
         return Grouping(None, np.concatenate([[0], np.flatnonzero(change) + 1, [n]]).astype(np.int64), n)
+    if feed and t is not None and bool(np.all(t[1:] >= t[:-1])):
+        # a time-ordered feed: each track's rows are in time order as they
+        # stand (ties in row order, as the stable sort would keep them)
+        return Grouping(None, np.zeros(k + 1, dtype=np.int64), n, feed=codes)
     order = _stable_order(codes, k)
     cs = codes[order]
     same = cs[1:] == cs[:-1]
@@ -196,6 +207,44 @@ def _two_part(filt: FixedGainFilter, z: np.ndarray, t: Optional[np.ndarray], off
                         n_restarts=np.concatenate([a.n_restarts, b.n_restarts]), t=t)
 
 
+def _run_feed(filt: FixedGainFilter, codes: np.ndarray, n_tracks: int, zs: Sequence[np.ndarray], t: Optional[np.ndarray],
+              cols: Sequence[str], names: Sequence[Sequence[str]], new: Dict[str, np.ndarray], *, init: Any,
+              return_residuals: bool, kw: Dict[str, Any], where: Any) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A time-ordered feed through the row kernel (no reordering; see
+    :func:`abkit._tracks.run_feed`), one call per column dtype. Fills
+    ``new`` with the estimate columns; returns the per-track dropped and
+    restart counts and the first row of each track."""
+    from ._tracks import run_feed
+
+    n = filt.n
+    counts = rows = None
+    got: Dict[str, np.ndarray] = {}
+    for dt in dict.fromkeys(z.dtype for z in zs):
+        idx = [c for c, z in enumerate(zs) if z.dtype == dt]
+        try:
+            out, res, ct, rw = run_feed(filt, [zs[c] for c in idx], t, codes, n_tracks, init=init,
+                                        return_residuals=return_residuals, **kw)
+        except ValueError as exc:
+            m = re.match(r"column (\d+): track (\d+), sample (\d+)", str(exc))
+            if m is None:
+                raise
+            msg = str(exc)
+            c = idx[int(m.group(1))]
+            raise ValueError(f"column {cols[c]!r}, {where(int(m.group(2)), int(m.group(3)))}: {msg[m.end():].lstrip(': ')}") from None
+        if counts is None or idx[0] == 0:
+            counts, rows = ct, rw
+        for j, c in enumerate(idx):
+            for k in range(n):
+                got[names[c][k]] = out[j, k]
+            if res is not None:
+                got[names[c][n]] = res[j]
+    for row in names:  # the columns' order, whatever their dtypes
+        for nm in row:
+            new[nm] = got[nm]
+    assert counts is not None and rows is not None
+    return counts[:, 0], counts[:, 1], rows[:, 1]
+
+
 # -- DataFrame front end -----------------------------------------------------------------
 def _library(df: Any) -> str:
     mod = type(df).__module__
@@ -228,7 +277,18 @@ def _codes(df: Any, lib: str, id: str) -> np.ndarray:
     s = df.get_column(id)
     if s.null_count():
         raise ValueError(f"id column {id!r}: missing id at row {int(s.is_null().arg_max())}")
-    return s.rank("dense").to_numpy().astype(np.int64) - 1
+    try:
+        # hash-based codes in order of first appearance (as pandas.factorize)
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        arr = s.rechunk().to_arrow()
+        if isinstance(arr, pa.ChunkedArray):
+            arr = arr.combine_chunks()
+        enc = pc.dictionary_encode(arr)
+        return np.asarray(enc.indices.to_numpy(zero_copy_only=False), dtype=np.int64)
+    except Exception:  # no pyarrow, or a type it cannot encode: a sort
+        return s.rank("dense").to_numpy().astype(np.int64) - 1
 
 
 def _float_values(df: Any, lib: str, name: str) -> np.ndarray:
@@ -456,7 +516,7 @@ def filter(
     codes = _codes(df, lib, id)
     t = None if time is None else _seconds(df, lib, time)
     zs = [_float_values(df, lib, c) for c in cols]
-    g = group(codes, t)
+    g = group(codes, t, feed=True)
     kw: Dict[str, Any] = {}
     if max_gap is not None:
         kw["max_gap"] = max_gap
@@ -475,7 +535,10 @@ def filter(
     n_tracks = g.offsets.size - 1
     dropped = np.zeros(n_tracks, dtype=np.int64)
     restarts = np.zeros(n_tracks, dtype=np.int64)
-    if g.n:
+    if g.n and g.feed is not None:
+        dropped, restarts, first = _run_feed(filter, g.feed, n_tracks, zs, t, cols, names, new, init=init,
+                                             return_residuals=return_residuals, kw=kw, where=where)
+    elif g.n:
         results = run_grouped(filter, g, zs, t, init=init, return_residuals=return_residuals, kw=kw, where=where, names=cols)
         dropped, restarts = results[0].n_dropped, results[0].n_restarts
         for row, r in zip(names, results):
@@ -488,9 +551,13 @@ def filter(
         for row, z in zip(names, zs):
             for nm in row:
                 new[nm] = np.empty(0, dtype=z.dtype)
-    first = g.offsets[:-1] if g.order is None else g.order[g.offsets[:-1]]
+    if g.feed is None:
+        first = g.offsets[:-1] if g.order is None else g.order[g.offsets[:-1]]
+        n_rows = np.diff(g.offsets)
+    else:
+        n_rows = np.bincount(g.feed, minlength=n_tracks)
     ids = np.asarray(id_values.iloc[first] if lib == "pandas" else id_values.gather(first).to_numpy())
-    summary = FrameSummary(ids, np.diff(g.offsets), np.asarray(dropped, dtype=np.int64),
+    summary = FrameSummary(ids, n_rows, np.asarray(dropped, dtype=np.int64),
                            np.asarray(restarts, dtype=np.int64), g.order is not None)
     if lib == "pandas":
         import pandas as pd

@@ -37,6 +37,7 @@ pub mod abg;
 pub mod alphabeta;
 pub mod batch;
 mod error;
+pub mod feed;
 pub mod filter;
 pub mod irregular;
 pub mod kalman;

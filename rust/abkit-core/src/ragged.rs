@@ -103,7 +103,7 @@ impl<'a, T: Copy> Samples<'a, T> {
 
     /// Address of flat sample `g`, component 0.
     #[inline]
-    fn addr(&self, g: usize) -> isize {
+    pub(crate) fn addr(&self, g: usize) -> isize {
         let (r, p) = if self.n_rows <= 1 {
             (0, g)
         } else {
@@ -113,7 +113,7 @@ impl<'a, T: Copy> Samples<'a, T> {
     }
 
     /// Check that every element lies inside `data`.
-    fn validate(&self, what: &str) -> Result<()> {
+    pub(crate) fn validate(&self, what: &str) -> Result<()> {
         if self.is_empty() {
             return Ok(());
         }
@@ -1036,7 +1036,13 @@ fn run_block_lanes<
 
 /// One track of the time-varying kernel (see the module docs).
 #[inline(always)]
-fn track_tv<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const FMA: bool>(
+pub(crate) fn track_tv<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    const N: usize,
+    const M: usize,
+    const FMA: bool,
+>(
     law: &mut L,
     h: &[[f64; N]; M],
     h_pinv: &[[f64; M]; N],

@@ -36,6 +36,7 @@ macro_rules! dispatch {
 mod abg;
 mod alphabeta;
 mod convert;
+mod feed;
 mod filter;
 mod kalman;
 mod riccati;
@@ -57,6 +58,8 @@ mod _abkit {
         alphabeta_from_natural_frequency, alphabeta_from_noise, alphabeta_from_snr,
         alphabeta_from_tracking_error, alphabeta_from_tracking_index,
     };
+    #[pymodule_export]
+    use super::feed::filter_feed_py;
     #[pymodule_export]
     use super::filter::{filter_alphabeta, filter_fixed_gain};
     #[pymodule_export]

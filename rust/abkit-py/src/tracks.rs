@@ -22,7 +22,11 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
 /// Any-strides view as `Samples` (rows, row_len, m).
-fn samples<'a, T: Copy>(ptr: *const T, dims: [usize; 3], s: [isize; 3]) -> Samples<'a, T> {
+pub(crate) fn samples<'a, T: Copy>(
+    ptr: *const T,
+    dims: [usize; 3],
+    s: [isize; 3],
+) -> Samples<'a, T> {
     let [rows, len, m] = dims;
     if rows == 0 || len == 0 || m == 0 {
         return Samples {
@@ -71,7 +75,7 @@ fn t_samples<'a>(v: &ArrayView2<'a, f64>) -> Samples<'a, f64> {
 }
 
 /// The gain law of a filter, by kind, with its parameter rows.
-enum Law {
+pub(crate) enum Law {
     Constant(Vec<f64>),
     AbFixed(Vec<AbFixed>),
     AbDesign(Vec<AbDesign>),
@@ -80,7 +84,7 @@ enum Law {
     Singer(Vec<SingerDesign>),
 }
 
-fn parse_law(kind: &str, params: &[f64], width: usize) -> PyResult<Law> {
+pub(crate) fn parse_law(kind: &str, params: &[f64], width: usize) -> PyResult<Law> {
     let need = match kind {
         "constant" => width,
         "ab-fixed" => 2,
@@ -212,7 +216,9 @@ fn run_typed<
     res.map_err(|e| to_pyerr((0, e)))
 }
 
-fn constant_laws<const N: usize, const M: usize>(p: &[f64]) -> PyResult<Vec<Constant<N, M>>> {
+pub(crate) fn constant_laws<const N: usize, const M: usize>(
+    p: &[f64],
+) -> PyResult<Vec<Constant<N, M>>> {
     let w = N * N + N * M;
     if p.is_empty() || !p.len().is_multiple_of(w) {
         return Err(PyValueError::new_err("Phi, K sizes do not match n, m"));

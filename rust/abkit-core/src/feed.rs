@@ -1,0 +1,550 @@
+//! A feed of reports in arrival order: rows of many tracks interleaved
+//! (an AIS/ADS-B dump ordered by time), filtered row by row.
+//!
+//! Row `r` belongs to track `codes[r]`; the track's state lives in a table
+//! indexed by track and is updated in place, so measurements, timestamps and
+//! estimates are read and written in row order (sequential memory access)
+//! instead of gathering every track's rows into a ragged batch and
+//! scattering the estimates back. Each sample goes through the same per-sample
+//! code as [`crate::ragged::filter_tracks`] (the module's `track_tv`), so the
+//! estimates, residuals, counts and errors equal those of the ragged kernel
+//! run on the rows grouped by track (in row order within each track) —
+//! bit-identical.
+//!
+//! Several measurement columns (e.g. the x and y of a position, each
+//! filtered with the scalar-measurement filter) share the codes and
+//! timestamps; each column has its own state table and runs on rayon's
+//! pool when `parallel`.
+use crate::filter::{IoFloat, TrackOut, TrackState};
+use crate::irregular::GainLaw;
+use crate::ragged::{track_tv, Counts, Options, Samples, TrackFilter};
+use crate::{Error, Result};
+use rayon::prelude::*;
+
+/// Where a feed's error happened: the column and the core error (a
+/// [`Error::Data`] names the track and the sample within the track).
+pub type FeedError = (usize, Error);
+
+/// Per-track bookkeeping of a feed: rows seen so far and the first row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TrackRows {
+    /// Number of rows of the track.
+    pub n: i64,
+    /// Row index of its first row (`-1`: none).
+    pub first: i64,
+}
+
+impl Default for TrackRows {
+    fn default() -> Self {
+        TrackRows { n: 0, first: -1 }
+    }
+}
+
+/// Filter the rows of a feed (see the module docs).
+///
+/// `codes[r]` in `0..n_tracks` is the track of row `r`; `z` one
+/// [`Samples`] per column (each `codes.len()` samples of `M` components);
+/// `t` the rows' timestamps or `None` (every step the nominal period);
+/// `states` `n_columns * n_tracks` (column `c`'s table at `c * n_tracks`);
+/// `out` `(n_columns, N, n_rows)`; `resid` `(n_columns, n_rows, M)`;
+/// `counts` (`[n_dropped, n_restarts]`) and `rows` per track, from column 0
+/// (the counts of the ragged kernel's first column). The first column with
+/// an error (in column order) is reported.
+#[allow(clippy::too_many_arguments)]
+pub fn filter_feed<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    codes: &[i64],
+    z: &[Samples<'_, T>],
+    t: Option<&Samples<'_, f64>>,
+    states: &mut [TrackState],
+    out: &mut [T],
+    resid: Option<&mut [T]>,
+    counts: &mut [Counts],
+    rows: &mut [TrackRows],
+    parallel: bool,
+) -> std::result::Result<(), FeedError> {
+    let n_rows = codes.len();
+    let n_cols = z.len();
+    let n_tracks = rows.len();
+    let shape = |m: String| (0, Error::Shape(m));
+    for (c, zc) in z.iter().enumerate() {
+        if zc.m != M || zc.len() != n_rows {
+            return Err(shape(format!(
+                "column {c}: {} samples of {} components, need {n_rows} of {M}",
+                zc.len(),
+                zc.m
+            )));
+        }
+        zc.validate("measurement").map_err(|e| (c, e))?;
+    }
+    if let Some(ts) = t {
+        if ts.len() != n_rows {
+            return Err(shape(format!(
+                "t has {} samples, the feed {n_rows} rows",
+                ts.len()
+            )));
+        }
+        ts.validate("timestamp").map_err(|e| (0, e))?;
+    }
+    if filt.laws.len() != 1 && filt.laws.len() != n_tracks {
+        return Err(shape(format!(
+            "{} parameter sets for {n_tracks} tracks (need 1 or one per track)",
+            filt.laws.len()
+        )));
+    }
+    if states.len() != n_cols * n_tracks || counts.len() != n_tracks {
+        return Err(shape(
+            "state or count buffers do not match the tracks".into(),
+        ));
+    }
+    if out.len() != n_cols * N * n_rows {
+        return Err(shape("output buffer has the wrong size".into()));
+    }
+    if let Some(r) = &resid {
+        if r.len() != n_cols * M * n_rows {
+            return Err(shape("residual buffer has the wrong size".into()));
+        }
+    }
+    if !(opts.t_nominal.is_finite() && opts.t_nominal > 0.0) {
+        return Err((0, Error::domain("T", "finite and > 0", opts.t_nominal)));
+    }
+    if let Some(g) = opts.max_gap {
+        if g.is_nan() || g <= 0.0 {
+            return Err((0, Error::domain("max_gap", "> 0", g)));
+        }
+    }
+    if let Some(r) = codes
+        .iter()
+        .position(|&i| i < 0 || i as u64 >= n_tracks as u64)
+    {
+        return Err(shape(format!(
+            "row {r}: track code {} outside 0..{n_tracks}",
+            codes[r]
+        )));
+    }
+    if n_rows == 0 || n_cols == 0 {
+        return Ok(());
+    }
+    // Per-column jobs with disjoint buffers.
+    struct Job<'a, T, const N: usize> {
+        col: usize,
+        out: [&'a mut [T]; N],
+        resid: Option<&'a mut [T]>,
+        states: &'a mut [TrackState],
+    }
+    let mut out_cols = out.chunks_exact_mut(N * n_rows);
+    let mut resid_cols = resid.map(|r| r.chunks_exact_mut(M * n_rows));
+    let mut jobs: Vec<Job<'_, T, N>> = Vec::with_capacity(n_cols);
+    for (col, st) in states.chunks_exact_mut(n_tracks).enumerate() {
+        let Some(o) = out_cols.next() else { break };
+        let mut comps = o.chunks_exact_mut(n_rows);
+        let out: [&mut [T]; N] = std::array::from_fn(|_| comps.next().unwrap_or_default());
+        let resid = resid_cols.as_mut().and_then(|it| it.next());
+        jobs.push(Job {
+            col,
+            out,
+            resid,
+            states: st,
+        });
+    }
+    let mut c0: Vec<Counts> = vec![[0; 2]; n_tracks];
+    let mut r0: Vec<TrackRows> = vec![TrackRows::default(); n_tracks];
+    let run = |job: &mut Job<'_, T, N>, ct: &mut [Counts], tr: &mut [TrackRows]| {
+        run_column_dispatch(
+            filt,
+            opts,
+            codes,
+            &z[job.col],
+            t,
+            job.states,
+            &mut job.out,
+            job.resid.as_deref_mut(),
+            ct,
+            tr,
+        )
+        .map_err(|e| (job.col, e))
+    };
+    let (first, rest) = jobs.split_at_mut(1);
+    let results: Vec<std::result::Result<(), FeedError>> = if parallel && n_cols > 1 {
+        let (a, b) = rayon::join(
+            || run(&mut first[0], &mut c0, &mut r0),
+            || {
+                rest.par_iter_mut()
+                    .map(|j| {
+                        let mut ct = vec![[0; 2]; n_tracks];
+                        let mut tr = vec![TrackRows::default(); n_tracks];
+                        run(j, &mut ct, &mut tr)
+                    })
+                    .collect::<Vec<_>>()
+            },
+        );
+        std::iter::once(a).chain(b).collect()
+    } else {
+        let mut v = vec![run(&mut first[0], &mut c0, &mut r0)];
+        let (mut ct, mut tr) = (vec![[0; 2]; n_tracks], vec![TrackRows::default(); n_tracks]);
+        for j in rest.iter_mut() {
+            ct.fill([0; 2]);
+            tr.fill(TrackRows::default());
+            v.push(run(j, &mut ct, &mut tr));
+        }
+        v
+    };
+    counts.copy_from_slice(&c0);
+    rows.copy_from_slice(&r0);
+    results.into_iter().collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_column_dispatch<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    codes: &[i64],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    states: &mut [TrackState],
+    out: &mut [&mut [T]; N],
+    resid: Option<&mut [T]>,
+    counts: &mut [Counts],
+    rows: &mut [TrackRows],
+) -> Result<()> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::filter::uses_fma() {
+            // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
+            return unsafe {
+                run_column_fma(filt, opts, codes, z, t, states, out, resid, counts, rows)
+            };
+        }
+        run_column::<T, L, N, M, false>(filt, opts, codes, z, t, states, out, resid, counts, rows)
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        run_column::<T, L, N, M, true>(filt, opts, codes, z, t, states, out, resid, counts, rows)
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        run_column::<T, L, N, M, false>(filt, opts, codes, z, t, states, out, resid, counts, rows)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+#[allow(clippy::too_many_arguments)]
+fn run_column_fma<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    codes: &[i64],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    states: &mut [TrackState],
+    out: &mut [&mut [T]; N],
+    resid: Option<&mut [T]>,
+    counts: &mut [Counts],
+    rows: &mut [TrackRows],
+) -> Result<()> {
+    run_column::<T, L, N, M, true>(filt, opts, codes, z, t, states, out, resid, counts, rows)
+}
+
+/// One column: every row through the ragged kernel's per-sample code with
+/// its track's state, law and counts.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn run_column<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const FMA: bool>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    codes: &[i64],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    states: &mut [TrackState],
+    out: &mut [&mut [T]; N],
+    mut resid: Option<&mut [T]>,
+    counts: &mut [Counts],
+    rows: &mut [TrackRows],
+) -> Result<()> {
+    // One law per track (a law may cache its last step), or one shared.
+    let mut shared = filt.laws[0].clone();
+    let mut own: Vec<L> = if filt.laws.len() > 1 {
+        filt.laws.to_vec()
+    } else {
+        Vec::new()
+    };
+    for (r, &code) in codes.iter().enumerate() {
+        let i = code as usize;
+        let tr = &mut rows[i];
+        let sample = tr.n as usize;
+        if tr.n == 0 {
+            tr.first = r as i64;
+        }
+        tr.n += 1;
+        let law = if own.is_empty() {
+            &mut shared
+        } else {
+            &mut own[i]
+        };
+        let za = z.addr(r);
+        let zf = |_: usize| -> [f64; M] {
+            std::array::from_fn(|c| z.data[(za + c as isize * z.s_comp) as usize].to_f64())
+        };
+        let mut o = TrackOut {
+            states: out.each_mut().map(|s| &mut s[r..r + 1]),
+            resid: resid.as_deref_mut().map(|s| &mut s[r * M..(r + 1) * M]),
+        };
+        let res = match t {
+            Some(ts) => {
+                let tk = ts.data[ts.addr(r) as usize];
+                let tf = |_: usize| -> f64 { tk };
+                track_tv::<T, L, N, M, FMA>(
+                    law,
+                    &filt.h,
+                    &filt.h_pinv,
+                    opts,
+                    &mut states[i],
+                    1,
+                    zf,
+                    Some(&tf),
+                    &mut o,
+                    &mut counts[i],
+                    i,
+                    0,
+                    false,
+                )
+            }
+            None => track_tv::<T, L, N, M, FMA>(
+                law,
+                &filt.h,
+                &filt.h_pinv,
+                opts,
+                &mut states[i],
+                1,
+                zf,
+                None::<&fn(usize) -> f64>,
+                &mut o,
+                &mut counts[i],
+                i,
+                0,
+                false,
+            ),
+        };
+        if let Err(e) = res {
+            // the sample within the track, not within this one-row call
+            return Err(match e {
+                Error::Data { track, msg, .. } => Error::Data { track, sample, msg },
+                other => other,
+            });
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::filter::Init;
+    use crate::irregular::{AbDesign, AbgFixed};
+    use crate::ragged::{filter_tracks, NoPost};
+
+    /// Rows of `n_tracks` interleaved pseudo-randomly, increasing times;
+    /// the feed equals the ragged kernel on the grouped rows, bit for bit.
+    fn check<L: GainLaw<N, 1>, const N: usize>(
+        laws: &[L],
+        h: [[f64; N]; 1],
+        h_pinv: [[f64; 1]; N],
+    ) {
+        let n_tracks = 7;
+        let n_rows = 600;
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let codes: Vec<i64> = (0..n_rows)
+            .map(|_| (rnd() * n_tracks as f64) as i64)
+            .collect();
+        let mut tt = 0.0;
+        let t: Vec<f64> = (0..n_rows)
+            .map(|r| {
+                // some duplicate timestamps and some long gaps
+                if r % 37 != 5 {
+                    tt += 0.05 + rnd() * if r % 101 == 3 { 50.0 } else { 0.5 };
+                }
+                tt
+            })
+            .collect();
+        let z: Vec<f64> = (0..n_rows)
+            .map(|r| {
+                if rnd() < 0.1 {
+                    f64::NAN
+                } else {
+                    3.0 * t[r] + codes[r] as f64 * 10.0 + rnd()
+                }
+            })
+            .collect();
+        for init in [Init::TwoPoint, Init::First] {
+            for max_gap in [None, Some(5.0)] {
+                let opts = Options {
+                    init,
+                    t_nominal: 0.3,
+                    max_gap,
+                    drop_duplicates: true,
+                };
+                let filt = TrackFilter { laws, h, h_pinv };
+                for with_t in [true, false] {
+                    let zs = [Samples::flat(&z, 1).unwrap()];
+                    let ts = Samples::flat(&t, 1).unwrap();
+                    let mut st = vec![TrackState::default(); n_tracks];
+                    for s in &mut st {
+                        s.t_last = f64::NAN;
+                        s.t_held = f64::NAN;
+                    }
+                    let mut st_ref = st.clone();
+                    let mut out = vec![0.0; N * n_rows];
+                    let mut res = vec![0.0; n_rows];
+                    let mut ct = vec![[0; 2]; n_tracks];
+                    let mut tr = vec![TrackRows::default(); n_tracks];
+                    filter_feed(
+                        &filt,
+                        &opts,
+                        &codes,
+                        &zs,
+                        with_t.then_some(&ts),
+                        &mut st,
+                        &mut out,
+                        Some(&mut res),
+                        &mut ct,
+                        &mut tr,
+                        false,
+                    )
+                    .unwrap();
+                    // the grouped reference
+                    let mut order: Vec<usize> = (0..n_rows).collect();
+                    order.sort_by_key(|&r| codes[r]); // stable
+                    let zg: Vec<f64> = order.iter().map(|&r| z[r]).collect();
+                    let tg: Vec<f64> = order.iter().map(|&r| t[r]).collect();
+                    let mut off = vec![0i64; n_tracks + 1];
+                    for &c in &codes {
+                        off[c as usize + 1] += 1;
+                    }
+                    for i in 0..n_tracks {
+                        off[i + 1] += off[i];
+                    }
+                    let mut out_g = vec![0.0; N * n_rows];
+                    let mut res_g = vec![0.0; n_rows];
+                    let mut ct_g = vec![[0; 2]; n_tracks];
+                    let tgs = Samples::flat(&tg, 1).unwrap();
+                    filter_tracks(
+                        &filt,
+                        &opts,
+                        &off,
+                        &Samples::flat(&zg, 1).unwrap(),
+                        with_t.then_some(&tgs),
+                        &mut st_ref,
+                        &mut out_g,
+                        Some(&mut res_g),
+                        &mut ct_g,
+                        false,
+                        &NoPost,
+                    )
+                    .unwrap();
+                    for (g, &r) in order.iter().enumerate() {
+                        for c in 0..N {
+                            assert_eq!(
+                                out[c * n_rows + r].to_bits(),
+                                out_g[c * n_rows + g].to_bits(),
+                                "state {c} row {r}"
+                            );
+                        }
+                        assert_eq!(res[r].to_bits(), res_g[g].to_bits());
+                    }
+                    assert_eq!(ct, ct_g);
+                    for i in 0..n_tracks {
+                        assert_eq!(st[i].x, st_ref[i].x);
+                        assert_eq!(tr[i].n, off[i + 1] - off[i]);
+                        assert_eq!(
+                            tr[i].first,
+                            codes
+                                .iter()
+                                .position(|&c| c == i as i64)
+                                .map_or(-1, |p| p as i64)
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn feed_equals_grouped_ragged_kernel() {
+        check(&[AbDesign { ratio: 0.7 }], [[1.0, 0.0]], [[1.0], [0.0]]);
+        check(
+            &[AbgFixed {
+                alpha: 0.5,
+                beta: 0.3,
+                cgamma: 0.05,
+            }],
+            [[1.0, 0.0, 0.0]],
+            [[1.0], [0.0], [0.0]],
+        );
+    }
+
+    #[test]
+    fn feed_errors_name_track_and_sample() {
+        let laws = [AbDesign { ratio: 1.0 }];
+        let filt = TrackFilter {
+            laws: &laws,
+            h: [[1.0, 0.0]],
+            h_pinv: [[1.0], [0.0]],
+        };
+        let opts = Options {
+            init: Init::TwoPoint,
+            t_nominal: 1.0,
+            max_gap: None,
+            drop_duplicates: false,
+        };
+        let codes = [0i64, 1, 1, 0, 1];
+        let t = [0.0, 0.0, 1.0, 2.0, 1.0];
+        let z = [1.0; 5];
+        let mut st = vec![TrackState::default(); 2];
+        for s in &mut st {
+            s.t_last = f64::NAN;
+            s.t_held = f64::NAN;
+        }
+        let mut out = vec![0.0; 10];
+        let mut ct = vec![[0; 2]; 2];
+        let mut tr = vec![TrackRows::default(); 2];
+        let err = filter_feed(
+            &filt,
+            &opts,
+            &codes,
+            &[Samples::flat(&z, 1).unwrap()],
+            Some(&Samples::flat(&t, 1).unwrap()),
+            &mut st,
+            &mut out,
+            None,
+            &mut ct,
+            &mut tr,
+            false,
+        )
+        .unwrap_err();
+        match err {
+            (0, Error::Data { track, sample, .. }) => assert_eq!((track, sample), (1, 2)),
+            other => panic!("{other:?}"),
+        }
+        let bad = filter_feed(
+            &filt,
+            &opts,
+            &[0, 2],
+            &[Samples::flat(&z[..2], 1).unwrap()],
+            None,
+            &mut st,
+            &mut out[..4],
+            None,
+            &mut ct,
+            &mut tr,
+            false,
+        );
+        assert!(matches!(bad, Err((0, Error::Shape(_)))));
+    }
+}
