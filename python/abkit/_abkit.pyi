@@ -37,6 +37,7 @@ __all__ = [
     "STATE_WIDTH",
     "MAX_STATES",
     "filter_tracks",
+    "filter_feed",
     "__version__",
 ]
 
@@ -100,6 +101,26 @@ def filter_fixed_gain(
     smoother_gain: _F64 | None = None,
     lag: int | None = None,
 ) -> bool: ...
+def filter_feed(
+    zs: list[_FArr],
+    t: _F64 | None,
+    codes: npt.NDArray[np.int64],
+    n: int,
+    law: str,
+    params: _F64,
+    h: _F64,
+    h_pinv: _F64,
+    t_nominal: float,
+    init: str,
+    max_gap: float | None,
+    drop_duplicates: bool,
+    state: _F64,
+    out: _FArr,
+    counts: npt.NDArray[np.int64],
+    rows: npt.NDArray[np.int64],
+    resid: _FArr | None = None,
+    threads: int | None = None,
+) -> None: ...
 def filter_tracks(
     z: _FArr,
     t: _F64 | None,
