@@ -405,10 +405,7 @@ pub fn rts_gain3(
     let minv = s * chol.inverse() * s;
     let a = p * phi.transpose() * minv;
     let out: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| a[(i, j)]));
-    out.iter()
-        .flatten()
-        .all(|v| v.is_finite())
-        .then_some(out)
+    out.iter().flatten().all(|v| v.is_finite()).then_some(out)
 }
 
 /// Normalised backward gain `A_N = P_N Phi_N^T M_N^-1` (`h = 1` units,
@@ -493,7 +490,13 @@ impl Kin3Backward {
                 kin3_physical(&phi_n, &a_n, dt)
             }
         };
-        if out.0.iter().chain(out.1.iter()).flatten().all(|v| v.is_finite()) {
+        if out
+            .0
+            .iter()
+            .chain(out.1.iter())
+            .flatten()
+            .all(|v| v.is_finite())
+        {
             Ok(out)
         } else {
             Err(Error::domain(

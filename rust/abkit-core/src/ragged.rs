@@ -318,7 +318,9 @@ impl<T: IoFloat> PostTrack<T, 3> for Kin3Smooth<'_> {
         };
         match t {
             None => {
-                let (phi, a) = b.at(self.t_nominal).map_err(|e| fail(0, self.t_nominal, e))?;
+                let (phi, a) = b
+                    .at(self.t_nominal)
+                    .map_err(|e| fail(0, self.t_nominal, e))?;
                 crate::smooth::smooth_track(&phi, &a, self.lag, states);
                 Ok(())
             }

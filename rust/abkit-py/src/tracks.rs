@@ -421,9 +421,11 @@ pub(crate) fn filter_tracks_py<'py>(
                         sigma_pos: d.sigma_pos,
                     })
                     .map_err(err),
-                2.0 if r[1..].iter().all(|v| v.is_finite()) => Ok(Kin3Backward::Fixed(
-                    std::array::from_fn(|i| std::array::from_fn(|j| r[1 + 3 * i + j])),
-                )),
+                2.0 if r[1..].iter().all(|v| v.is_finite()) => {
+                    Ok(Kin3Backward::Fixed(std::array::from_fn(|i| {
+                        std::array::from_fn(|j| r[1 + 3 * i + j])
+                    })))
+                }
                 _ => Err(PyValueError::new_err(
                     "3-state smoother parameters: unknown kind or non-finite gain",
                 )),

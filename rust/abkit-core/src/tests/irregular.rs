@@ -125,7 +125,11 @@ fn ab_backward_fixed_scales_with_dt() {
 
 /// Brute force: iterate the Riccati recursion of `(phi, q, r)` (position
 /// measured) to convergence, then `A = P Phi' M^-1`.
-fn brute_rts(phi: nalgebra::Matrix3<f64>, q: nalgebra::Matrix3<f64>, r: f64) -> nalgebra::Matrix3<f64> {
+fn brute_rts(
+    phi: nalgebra::Matrix3<f64>,
+    q: nalgebra::Matrix3<f64>,
+    r: f64,
+) -> nalgebra::Matrix3<f64> {
     let mut m = nalgebra::Matrix3::<f64>::identity() * 1e3;
     let mut p = m;
     for _ in 0..200_000 {
@@ -167,7 +171,9 @@ fn kin3_backward_abg_design_is_the_rts_gain_of_the_riccati_solution() {
     let dt = 0.7;
     let phi = nalgebra::Matrix3::new(1.0, dt, 0.5 * dt * dt, 0.0, 1.0, dt, 0.0, 0.0, 1.0);
     let q = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(0.0, 0.0, 0.4));
-    let (_, a) = Kin3Backward::AbgDesign([0.0, 0.0, 0.4, 2.0]).at(dt).unwrap();
+    let (_, a) = Kin3Backward::AbgDesign([0.0, 0.0, 0.4, 2.0])
+        .at(dt)
+        .unwrap();
     assert_close3(&a, &brute_rts(phi, q, 2.0), 1e-9, "abg accel-only");
 }
 
@@ -177,7 +183,13 @@ fn kin3_backward_singer_is_the_rts_gain_of_the_riccati_solution() {
     for &dt in &[0.5, 1.0, 7.0] {
         let (phi, qm) = crate::singer::model(dt, tau, q).unwrap();
         let a_ref = brute_rts(phi, qm, sp * sp);
-        let (phi_k, a) = Kin3Backward::Singer { tau, q, sigma_pos: sp }.at(dt).unwrap();
+        let (phi_k, a) = Kin3Backward::Singer {
+            tau,
+            q,
+            sigma_pos: sp,
+        }
+        .at(dt)
+        .unwrap();
         for i in 0..3 {
             for j in 0..3 {
                 let rel = (phi_k[i][j] - phi[(i, j)]).abs() / phi[(i, j)].abs().max(1e-300);
@@ -218,10 +230,14 @@ fn kin3_cache_returns_the_uncached_values() {
         sigma_pos: 2.0,
     };
     let mut c = Kin3Cache::default();
-    for &dt in &[1.0, 0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 0.5, 1.0] {
+    for &dt in &[
+        1.0, 0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 0.5, 1.0,
+    ] {
         assert_eq!(c.get(&back, dt).unwrap(), back.at(dt).unwrap());
     }
     // A failing design is an error, not a cached value.
     assert!(c.get(&back, 1e-80).is_err());
-    assert!(Kin3Backward::AbgDesign([0.0, 0.0, 0.1, 1.0]).at(1e-90).is_err());
+    assert!(Kin3Backward::AbgDesign([0.0, 0.0, 0.1, 1.0])
+        .at(1e-90)
+        .is_err());
 }
