@@ -18,6 +18,8 @@ the non-temporal stores.
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 import pytest
 
@@ -187,7 +189,8 @@ GEN_CASES = [
 
 @pytest.mark.parametrize("name,ntr,n,pattern,dtype", GEN_CASES)
 def test_general_lanes_bit_identical_to_scalar_and_match_reference(name, ntr, n, pattern, dtype):
-    rng = np.random.default_rng(hash((name, ntr, n, pattern)) % 2**32)
+    # a seed that is the same in every process (hash() of a str is salted)
+    rng = np.random.default_rng(zlib.crc32(f"{name}-{ntr}-{n}-{pattern}".encode()))
     f, model, m = GEN_MODELS[name]()
     z = fr.with_nans(rng, fr.kinematic_z(rng, ntr, n, model.T if hasattr(model, "T") else 0.5, m=m), pattern)
     z = z.astype(dtype)
@@ -198,7 +201,10 @@ def test_general_lanes_bit_identical_to_scalar_and_match_reference(name, ntr, n,
     assert np.array_equal(lanes.state.x, scalar.state.x, equal_nan=True)
     s, _, _ = fr.run_ref(z, model, init)
     if dtype == np.float64:
-        fr.assert_states_close(lanes.states, s, RTOL)
+        # kinematic states (abg, Singer): a rate's scale is the position's
+        # scale / T^c, as in the compliance test (a last-bit position
+        # difference enters the rates through K / T^c and grows over coasts)
+        fr.assert_states_close(lanes.states, s, RTOL, kin_T=model.T if name != "cv2d" else None)
     else:
         assert_f32_rounded(lanes.states, s)
 

@@ -157,11 +157,11 @@ def check_no_inf_after(f: "FixedGainFilter", z3: np.ndarray, off: np.ndarray, pa
             val = float(seg[tuple(inf[0])])
             raise ValueError(f"track {int(i)}, sample {k}: z must be finite or NaN (a missed detection), got {val!r}")
     if bad.size and not f.allow_unstable:
-        i = int(bad[0])
-        seg = z3[0, int(off[i]) : int(off[i + 1])] if flat else z3[i]
+        j = int(bad[0])
+        seg = z3[0, int(off[j]) : int(off[j + 1])] if flat else z3[j]
         big = float(np.nanmax(np.abs(seg))) if seg.size else float("nan")
         raise ValueError(
-            f"the estimates of track {i} overflowed float64: z values up to {big:.3g} are too large "
+            f"the estimates of track {j} overflowed float64: z values up to {big:.3g} are too large "
             "for this filter; rescale z"
         )
 
