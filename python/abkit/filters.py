@@ -659,8 +659,9 @@ class FixedGainFilter:
 
     def smoother_gain(self, Q: Any = None, R: Any = None) -> np.ndarray:
         """Backward gain ``A = P_filt Phi^T P_pred^-1`` of the steady-state
-        RTS smoother for the model (Q, R); for an alpha-beta filter without
-        (Q, R), that of its Kalman-equivalent model."""
+        RTS smoother for the model (Q, R); for an alpha-beta or (near-optimal)
+        alpha-beta-gamma filter without (Q, R), that of its Kalman-equivalent
+        model."""
         if Q is None and R is None:
             return self._default_smoother_gain()
         if Q is None or R is None:
@@ -704,8 +705,9 @@ class FixedGainFilter:
         lag : int, optional
             Fixed lag ``L >= 0`` (``0`` returns the filtered estimates).
         Q, R : array_like, optional
-            Noise model for the backward gain. Alpha-beta filters default to
-            their Kalman-equivalent model.
+            Noise model for the backward gain. Alpha-beta and near-optimal
+            alpha-beta-gamma filters default to their Kalman-equivalent
+            model.
         smoother_gain : array_like, optional
             The backward gain ``A`` itself, shape ``(n, n)`` or
             ``(n_tracks, n, n)``.
