@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from abkit import AlphaBetaFilter, AlphaBetaGammaFilter, alphabeta, singer
+from abkit import AlphaBetaFilter, AlphaBetaGammaFilter, alphabeta
 from tracksref import cv_phi
 
 SW, SV = 3.2, 32.0
@@ -148,9 +148,10 @@ def test_smooth_with_t_errors():
     f = AlphaBetaFilter.from_noise(SW, SV, 0.3)
     with pytest.raises(ValueError, match="Q, R and smoother_gain apply without t"):
         f.smooth(np.ones(5), t=np.arange(5.0), Q=np.eye(2), R=[[1.0]])
-    g = AlphaBetaGammaFilter.from_noise(0.0, 0.0, 0.1, 1.0, 1.0)
-    with pytest.raises(NotImplementedError, match="smooth\\(t=...\\) is not implemented"):
-        g.smooth(np.ones(5), t=np.arange(5.0))
-    s = singer.tracking_filter(1.0, tau=20.0, sigma_m=1.0, sigma_pos=10.0)
-    with pytest.raises(NotImplementedError):
-        s.smooth(np.ones(5), t=np.arange(5.0))
+    # smooth(t=...) of the 3-state filters: tests/test_smooth_t.py. A
+    # general filter cannot build Phi(dt), as for run(t=...).
+    from abkit import FixedGainFilter
+
+    gen = FixedGainFilter([[1.0, 1.0], [0.0, 1.0]], [[1.0, 0.0]], [[0.5], [0.2]])
+    with pytest.raises(ValueError, match="t= needs a filter that knows its continuous model"):
+        gen.smooth(np.ones(5), t=np.arange(5.0), init="first")

@@ -140,7 +140,7 @@ def filter_tracks(
     counts: npt.NDArray[np.int64],
     resid: _FArr | None = None,
     threads: int | None = None,
-    smoother: str | None = None,
+    smoother: str | None = None,  # None, "const" (Phi | A rows), "ab" (rows of 5), "kin3" (rows of 10)
     smoother_params: _F64 | None = None,
     lag: int | None = None,
 ) -> None: ...

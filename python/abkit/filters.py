@@ -659,8 +659,9 @@ class FixedGainFilter:
 
     def smoother_gain(self, Q: Any = None, R: Any = None) -> np.ndarray:
         """Backward gain ``A = P_filt Phi^T P_pred^-1`` of the steady-state
-        RTS smoother for the model (Q, R); for an alpha-beta filter without
-        (Q, R), that of its Kalman-equivalent model."""
+        RTS smoother for the model (Q, R); for an alpha-beta or (near-optimal)
+        alpha-beta-gamma filter without (Q, R), that of its Kalman-equivalent
+        model."""
         if Q is None and R is None:
             return self._default_smoother_gain()
         if Q is None or R is None:
@@ -704,8 +705,9 @@ class FixedGainFilter:
         lag : int, optional
             Fixed lag ``L >= 0`` (``0`` returns the filtered estimates).
         Q, R : array_like, optional
-            Noise model for the backward gain. Alpha-beta filters default to
-            their Kalman-equivalent model.
+            Noise model for the backward gain. Alpha-beta and near-optimal
+            alpha-beta-gamma filters default to their Kalman-equivalent
+            model.
         smoother_gain : array_like, optional
             The backward gain ``A`` itself, shape ``(n, n)`` or
             ``(n_tracks, n, n)``.
@@ -714,20 +716,24 @@ class FixedGainFilter:
             ``k`` to the next kept sample uses the backward gain of the
             interval between them, ``A(dt) = P_filt Phi(dt)^T P_pred^-1``
             of the steady-state design at that ``dt`` (``gain_schedule ==
-            "design"``) or, for fixed gains, the constant normalised gain of
+            "design"``: alpha-beta, alpha-beta-gamma ``from_noise`` and
+            the Singer filter, the backward gains cached per distinct
+            ``dt``) or, for fixed gains, the constant normalised gain of
             the Kalman-equivalent model scaled by ``dt``; dropped samples
             are skipped and the recursion restarts at ``max_gap`` gaps.
-            Implemented for :class:`AlphaBetaFilter`; other filters raise
-            ``NotImplementedError`` with ``t`` (``offsets``/``axes`` without
-            ``t`` work for every filter).
+            Every filter that accepts ``run(t=...)`` accepts it (a general
+            :class:`FixedGainFilter` with an arbitrary ``Phi`` does not:
+            ValueError).
 
         Raises
         ------
         ValueError
             As for :meth:`run`; ``Q``/``R``/``smoother_gain`` together with
-            ``t`` (the backward gain then follows ``dt``).
-        NotImplementedError
-            ``t`` for a filter other than :class:`AlphaBetaFilter`.
+            ``t`` (the backward gain then follows ``dt``); fixed gains
+            without a Kalman-equivalent model (alpha-beta ``alpha >= 1``,
+            alpha-beta-gamma gains that are not near-optimal) with ``t`` or
+            without ``Q``/``R``; a design with no stabilising steady state at
+            some ``dt`` (the track and sample are named).
         """
         if lag is not None and (not isinstance(lag, (int, np.integer)) or isinstance(lag, bool) or lag < 0):
             raise ValueError(f"lag must be a non-negative integer or None, got {lag!r}")
@@ -779,10 +785,28 @@ class FixedGainFilter:
         return self._run(z, init, None, out, return_residuals, threads, a.reshape(-1), lag, a.shape[0])
 
     def _time_smoother(self) -> Tuple[str, np.ndarray]:
-        raise NotImplementedError(
-            f"{type(self).__name__}.smooth(t=...) is not implemented (the per-dt backward gain is available "
-            "for AlphaBetaFilter); use run(t=...) for filtering, or smooth() on regularly sampled data"
-        )
+        """Smoother of the track kernel with timestamps: ``("kin3", rows)``
+        for the 3-state kinematic laws (rows of 10: kind 0 alpha-beta-gamma
+        design + noise, 1 Singer design + (tau, q, sigma_pos), 2 fixed
+        normalised backward gain ``A_N``)."""
+        kind, params = self._time_law()
+        params = np.atleast_2d(np.asarray(params, dtype=np.float64))
+        if kind in ("abg-design", "singer"):
+            rows = np.zeros((params.shape[0], 10))
+            rows[:, 0] = 0.0 if kind == "abg-design" else 1.0
+            rows[:, 1 : 1 + params.shape[1]] = params
+            return "kin3", rows
+        if kind == "abg-fixed":
+            # The Kalman-equivalent model's backward gain at T, normalised
+            # (x_N = D x, D = diag(1, T, T^2)); the kernel scales it to each dt.
+            a = self._default_smoother_gain()
+            d = np.stack([np.ones_like(self._t), self._t, self._t * self._t], axis=-1)
+            an = a * d[:, :, None] / d[:, None, :]
+            rows = np.zeros((an.shape[0], 10))
+            rows[:, 0] = 2.0
+            rows[:, 1:] = an.reshape(an.shape[0], 9)
+            return "kin3", rows
+        raise NotImplementedError(f"{type(self).__name__}.smooth(t=...) is not implemented for the gain law {kind!r}")
 
     def tracker(self, n_tracks: int = 1, init: Any = "two-point") -> "Tracker":
         """A :class:`Tracker` that holds this filter's state between chunks."""
@@ -1088,6 +1112,32 @@ class AlphaBetaGammaFilter(FixedGainFilter):
         self.gamma = g[0] if P == 1 else g
         self.T = t[0] if P == 1 else t
         self._set_transient(transient, P0, Q, R, x0)
+
+    def _default_smoother_gain(self) -> np.ndarray:
+        """Backward gain of the Kalman-equivalent model: the noise of Chen &
+        Chui's Corollary for which these gains are near-optimal
+        (:func:`abkit.abg.noise_ratios`; ValueError naming the gain if there
+        is none), with the covariances of these gains at that noise
+        (:func:`abkit.abg.analyze`)."""
+        from . import abg as _abg
+
+        c = ABG_CONVENTIONS[self.convention]
+        a, b, g, t = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (self.alpha, self.beta, self.gamma, self.T))
+        a, b, g, t = np.broadcast_arrays(a, b, g, t)
+        try:
+            _abg.noise_ratios(a, b, g * c, convention="chen-chui")
+        except ValueError as exc:
+            raise ValueError(
+                f"the gains have no Kalman-equivalent model ({exc}); pass Q and R (or smoother_gain) to smooth()"
+            ) from None
+        d = _abg.analyze(a, b, g * c, convention="chen-chui")
+        nn = np.zeros((a.size, 3, 3))
+        nn[:, 0, 0] = 1.0
+        nn[:, 1, 1] = 1.0 / t
+        nn[:, 2, 2] = 1.0 / (t * t)
+        p = nn @ np.asarray(d.covariance_filtered).reshape(-1, 3, 3) @ nn
+        m = nn @ np.asarray(d.covariance_predicted).reshape(-1, 3, 3) @ nn
+        return p @ np.transpose(self._phi, (0, 2, 1)) @ np.linalg.inv(m)
 
 
     @classmethod

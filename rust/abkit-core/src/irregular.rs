@@ -342,32 +342,210 @@ impl SingerDesign {
     }
 }
 
-fn singer_step(tau: f64, q: f64, sigma_pos: f64, dt: f64) -> Result<Step<3, 1>> {
-    {
-        let theta = dt / tau;
-        let s = dt * dt / sigma_pos;
-        let qn = q * dt * s * s;
-        if !(qn.is_finite() && qn > 0.0) {
-            return Err(Error::domain(
-                "q dt^5 / sigma_pos^2",
-                "representable as a finite, positive float64 (dt too small or too large)",
-                qn,
-            ));
-        }
-        let ss =
-            crate::singer::steady_state(theta, qn, f64::INFINITY, crate::singer::Method::Auto)?;
-        let d = [1.0, dt, dt * dt];
-        Ok(Step {
-            phi: std::array::from_fn(|i| std::array::from_fn(|j| ss.phi[(i, j)] * d[j] / d[i])),
-            k: std::array::from_fn(|i| [ss.k[i][0] / d[i]]),
-        })
+/// The normalised Singer steady state at `dt` (`theta = dt / tau`,
+/// `q_N = q dt^5 / sigma_pos^2`) and the scaling `d = [1, dt, dt^2]` back
+/// to physical units (`x_N = diag(d) x`).
+fn singer_steady(
+    tau: f64,
+    q: f64,
+    sigma_pos: f64,
+    dt: f64,
+) -> Result<(crate::singer::SteadyState, [f64; 3])> {
+    let theta = dt / tau;
+    let s = dt * dt / sigma_pos;
+    let qn = q * dt * s * s;
+    if !(qn.is_finite() && qn > 0.0) {
+        return Err(Error::domain(
+            "q dt^5 / sigma_pos^2",
+            "representable as a finite, positive float64 (dt too small or too large)",
+            qn,
+        ));
     }
+    let ss = crate::singer::steady_state(theta, qn, f64::INFINITY, crate::singer::Method::Auto)?;
+    Ok((ss, [1.0, dt, dt * dt]))
+}
+
+fn singer_step(tau: f64, q: f64, sigma_pos: f64, dt: f64) -> Result<Step<3, 1>> {
+    let (ss, d) = singer_steady(tau, q, sigma_pos, dt)?;
+    Ok(Step {
+        phi: std::array::from_fn(|i| std::array::from_fn(|j| ss.phi[(i, j)] * d[j] / d[i])),
+        k: std::array::from_fn(|i| [ss.k[i][0] / d[i]]),
+    })
 }
 
 impl GainLaw<3, 1> for SingerDesign {
     fn step(&mut self, dt: f64) -> Result<Step<3, 1>> {
         let (tau, q, sp) = (self.tau, self.q, self.sigma_pos);
         self.cache.get(dt, |dt| singer_step(tau, q, sp, dt))
+    }
+}
+
+/// `(Phi(dt), A(dt))` of one backward (RTS) step of a 3-state smoother.
+pub type Kin3Gain = ([[f64; 3]; 3], [[f64; 3]; 3]);
+
+/// `A = P Phi^T M^-1` (the RTS backward gain from the filtered covariance
+/// `P` and the predicted one `M`, symmetric positive definite), with `M`
+/// equilibrated by its diagonal before the inversion (the normalised
+/// covariances of small gains span many decades). `None` if `M` is not
+/// positive definite or the result is not finite.
+pub fn rts_gain3(
+    p: &nalgebra::Matrix3<f64>,
+    phi: &nalgebra::Matrix3<f64>,
+    m: &nalgebra::Matrix3<f64>,
+) -> Option<[[f64; 3]; 3]> {
+    if (0..3).any(|i| !(m[(i, i)] > 0.0 && m[(i, i)].is_finite())) {
+        return None;
+    }
+    let s = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::from_fn(|i, _| {
+        1.0 / m[(i, i)].sqrt()
+    }));
+    let ms = s * m * s;
+    let ms = (ms + ms.transpose()) * 0.5;
+    let chol = nalgebra::Cholesky::new(ms)?;
+    let minv = s * chol.inverse() * s;
+    let a = p * phi.transpose() * minv;
+    let out: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| a[(i, j)]));
+    out.iter().flatten().all(|v| v.is_finite()).then_some(out)
+}
+
+/// Normalised backward gain `A_N = P_N Phi_N^T M_N^-1` (`h = 1` units,
+/// `Phi_N = [[1, 1, 1/2], [0, 1, 1], [0, 0, 1]]`) of the steady-state
+/// Kalman alpha-beta-gamma filter with near-optimal gains `(alpha, beta,
+/// gamma)` (paper convention): the predicted covariance is
+/// `M_N = P~ / (1 - alpha)` (Chen & Chui, Corollary (iii); see
+/// [`crate::abg::p_tilde`]) and the filtered one `P_N = (I - w H) M_N`,
+/// `w = [alpha, beta, gamma]`. The scale of `M_N` cancels in `A_N`.
+pub fn abg_backward_normalised(alpha: f64, beta: f64, gamma: f64) -> Result<[[f64; 3]; 3]> {
+    let m = crate::abg::p_tilde(alpha, beta, gamma);
+    let mut ikh = nalgebra::Matrix3::<f64>::identity();
+    for (i, w) in [alpha, beta, gamma].into_iter().enumerate() {
+        ikh[(i, 0)] -= w;
+    }
+    let p = ikh * m;
+    let p = (p + p.transpose()) * 0.5;
+    let phi = nalgebra::Matrix3::new(1.0, 1.0, 0.5, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0);
+    rts_gain3(&p, &phi, &m).ok_or_else(|| {
+        Error::NoSolution(format!(
+            "the gains alpha={alpha}, beta={beta}, gamma={gamma} (Chen & Chui convention) have no \
+             positive definite steady-state covariance (Corollary (iii)): no RTS backward gain"
+        ))
+    })
+}
+
+/// Physical backward step from the normalised one: `Phi = D^-1 Phi_N D`,
+/// `A = D^-1 A_N D`, `D = diag(1, dt, dt^2)`.
+fn kin3_physical(phi_n: &[[f64; 3]; 3], a_n: &[[f64; 3]; 3], dt: f64) -> Kin3Gain {
+    let d = [1.0, dt, dt * dt];
+    (
+        std::array::from_fn(|i| std::array::from_fn(|j| phi_n[i][j] * d[j] / d[i])),
+        std::array::from_fn(|i| std::array::from_fn(|j| a_n[i][j] * d[j] / d[i])),
+    )
+}
+
+/// Backward (RTS) gain of the steady-state smoothers of the 3-state
+/// kinematic filters at step `dt`: `A(dt) = P_filt Phi(dt)^T P_pred^-1`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Kin3Backward {
+    /// The alpha-beta-gamma design at each `dt` (`[sigma_p, sigma_v,
+    /// sigma_a, sigma_m]`, as [`AbgDesign`]): the gains of
+    /// [`crate::abg::from_noise`] at `h = dt`, then
+    /// [`abg_backward_normalised`]; `Phi = phi_ca(dt)`.
+    AbgDesign([f64; 4]),
+    /// The Singer steady state at each `dt` (as [`SingerDesign`]):
+    /// `A_N = P_filt,N Phi_N^T P_pred,N^-1` of [`crate::singer::steady_state`]
+    /// at `theta = dt / tau`, `q_N = q dt^5 / sigma_pos^2`.
+    Singer {
+        /// Manoeuvre correlation time.
+        tau: f64,
+        /// Acceleration noise spectral density.
+        q: f64,
+        /// Rms position measurement error.
+        sigma_pos: f64,
+    },
+    /// Fixed gains: a constant normalised backward gain `A_N` (that of the
+    /// Kalman-equivalent model of the gains) with `Phi = phi_ca(dt)`.
+    Fixed([[f64; 3]; 3]),
+}
+
+impl Kin3Backward {
+    /// `(Phi(dt), A(dt))` (uncached; see [`Kin3Cache`]).
+    pub fn at(&self, dt: f64) -> Result<Kin3Gain> {
+        let phi_n = [[1.0, 1.0, 0.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]];
+        let out = match *self {
+            Kin3Backward::Fixed(a_n) => kin3_physical(&phi_n, &a_n, dt),
+            Kin3Backward::AbgDesign(noise) => {
+                let [a, b, g] = abg_gains(noise, dt)?;
+                kin3_physical(&phi_n, &abg_backward_normalised(a, b, g)?, dt)
+            }
+            Kin3Backward::Singer { tau, q, sigma_pos } => {
+                let (ss, _) = singer_steady(tau, q, sigma_pos, dt)?;
+                let a_n = rts_gain3(&ss.p_filt, &ss.phi, &ss.p_pred).ok_or_else(|| {
+                    Error::NoSolution(
+                        "the Singer steady state has no positive definite predicted covariance"
+                            .into(),
+                    )
+                })?;
+                let phi_n: [[f64; 3]; 3] =
+                    std::array::from_fn(|i| std::array::from_fn(|j| ss.phi[(i, j)]));
+                kin3_physical(&phi_n, &a_n, dt)
+            }
+        };
+        if out
+            .0
+            .iter()
+            .chain(out.1.iter())
+            .flatten()
+            .all(|v| v.is_finite())
+        {
+            Ok(out)
+        } else {
+            Err(Error::domain(
+                "dt",
+                "a step at which the transition and backward gain are representable in float64 \
+                 (overflow); rescale t",
+                dt,
+            ))
+        }
+    }
+}
+
+/// The backward steps of the last [`CACHE_SLOTS`] distinct `dt` (keyed by
+/// the bits of `dt`; round robin), so that a track's smoothing costs one
+/// design per distinct step.
+#[derive(Debug, Clone, Copy)]
+pub struct Kin3Cache {
+    keys: [u64; CACHE_SLOTS],
+    vals: [Kin3Gain; CACHE_SLOTS],
+    used: usize,
+    next: usize,
+}
+
+impl Default for Kin3Cache {
+    fn default() -> Self {
+        Kin3Cache {
+            keys: [0; CACHE_SLOTS],
+            vals: [([[0.0; 3]; 3], [[0.0; 3]; 3]); CACHE_SLOTS],
+            used: 0,
+            next: 0,
+        }
+    }
+}
+
+impl Kin3Cache {
+    /// `back.at(dt)`, cached.
+    pub fn get(&mut self, back: &Kin3Backward, dt: f64) -> Result<Kin3Gain> {
+        let key = dt.to_bits();
+        for i in 0..self.used {
+            if self.keys[i] == key {
+                return Ok(self.vals[i]);
+            }
+        }
+        let v = back.at(dt)?;
+        self.keys[self.next] = key;
+        self.vals[self.next] = v;
+        self.next = (self.next + 1) % CACHE_SLOTS;
+        self.used = (self.used + 1).min(CACHE_SLOTS);
+        Ok(v)
     }
 }
 

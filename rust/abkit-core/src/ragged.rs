@@ -36,7 +36,7 @@
 #![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
 
 use crate::filter::{Init, IoFloat, TrackOut, TrackState};
-use crate::irregular::{GainLaw, Step};
+use crate::irregular::{GainLaw, Kin3Backward, Kin3Cache, Step};
 use crate::{Error, Result};
 use rayon::prelude::*;
 
@@ -265,7 +265,7 @@ impl<T: IoFloat> PostTrack<T, 2> for AbSmooth<'_> {
                 max_gap.unwrap_or(f64::INFINITY),
                 self.lag,
                 states,
-                &mut |dt| {
+                &mut |dt, _| {
                     let (phi, a) = b.at(dt);
                     if phi.iter().chain(a.iter()).flatten().all(|v| v.is_finite()) {
                         Ok((phi, a))
@@ -281,6 +281,59 @@ impl<T: IoFloat> PostTrack<T, 2> for AbSmooth<'_> {
                     }
                 },
             ),
+        }
+    }
+}
+
+/// Smoothing of the 3-state kinematic filters (alpha-beta-gamma, Singer):
+/// with timestamps the per-dt backward gain of [`Kin3Backward`] (cached per
+/// track for the last distinct steps), at the nominal period without.
+#[derive(Debug, Clone)]
+pub struct Kin3Smooth<'a> {
+    /// Backward gains, 1 or one per track.
+    pub back: &'a [Kin3Backward],
+    /// Nominal period (steps without timestamps).
+    pub t_nominal: f64,
+    /// Fixed lag, or `None` for fixed interval.
+    pub lag: Option<usize>,
+}
+
+impl<T: IoFloat> PostTrack<T, 3> for Kin3Smooth<'_> {
+    fn post(
+        &self,
+        track: usize,
+        states: &mut [&mut [T]; 3],
+        t: Option<&dyn Fn(usize) -> f64>,
+        max_gap: Option<f64>,
+    ) -> Result<()> {
+        let Some(b) = self.back.get(if self.back.len() == 1 { 0 } else { track }) else {
+            return Err(Error::Shape(
+                "smoother gains do not match the tracks".into(),
+            ));
+        };
+        let fail = |sample: usize, dt: f64, e: Error| Error::Data {
+            track,
+            sample,
+            msg: format!("smoothing: no backward gain for the step dt={dt}: {e}"),
+        };
+        match t {
+            None => {
+                let (phi, a) = b
+                    .at(self.t_nominal)
+                    .map_err(|e| fail(0, self.t_nominal, e))?;
+                crate::smooth::smooth_track(&phi, &a, self.lag, states);
+                Ok(())
+            }
+            Some(t) => {
+                let mut cache = Kin3Cache::default();
+                crate::smooth::smooth_track_tv(
+                    t,
+                    max_gap.unwrap_or(f64::INFINITY),
+                    self.lag,
+                    states,
+                    &mut |dt, j| cache.get(b, dt).map_err(|e| fail(j, dt, e)),
+                )
+            }
         }
     }
 }

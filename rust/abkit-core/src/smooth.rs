@@ -113,7 +113,7 @@ pub type PhiAndGain<const N: usize> = ([[f64; N]; N], [[f64; N]; N]);
 
 /// Smooth one track with timestamps in place: the backward step from
 /// sample `k` to the next kept sample `j` (the next one whose estimate has
-/// no NaN) uses `gain(t_j - t_k) = (Phi, A)` for that interval. Samples with
+/// no NaN) uses `gain(t_j - t_k, j) = (Phi, A)` for that interval. Samples with
 /// a NaN component (dropped duplicates, start-up) are left as they are and
 /// skipped; the recursion restarts where the interval exceeds `max_gap` (a
 /// filter restart). `lag`: as in [`smooth_track`], counted in samples.
@@ -122,12 +122,12 @@ pub fn smooth_track_tv<T: IoFloat, const N: usize>(
     max_gap: f64,
     lag: Option<usize>,
     states: &mut [&mut [T]; N],
-    gain: &mut dyn FnMut(f64) -> crate::Result<PhiAndGain<N>>,
+    gain: &mut dyn FnMut(f64, usize) -> crate::Result<PhiAndGain<N>>,
 ) -> crate::Result<()> {
     let n = states.first().map_or(0, |s| s.len());
     match lag {
         None => {
-            let mut next: Option<([f64; N], f64)> = None;
+            let mut next: Option<([f64; N], f64, usize)> = None;
             for k in (0..n).rev() {
                 let xf = load(states, k);
                 if has_nan(&xf) {
@@ -135,8 +135,8 @@ pub fn smooth_track_tv<T: IoFloat, const N: usize>(
                 }
                 let tk = t(k);
                 let xs = match next {
-                    Some((xn, tn)) if tn - tk <= max_gap => {
-                        let (phi, a) = gain(tn - tk)?;
+                    Some((xn, tn, jn)) if tn - tk <= max_gap => {
+                        let (phi, a) = gain(tn - tk, jn)?;
                         step(&phi, &a, &xf, &xn)
                     }
                     _ => xf,
@@ -144,7 +144,7 @@ pub fn smooth_track_tv<T: IoFloat, const N: usize>(
                 for c in 0..N {
                     states[c][k] = T::from_f64(xs[c]);
                 }
-                next = Some((xs, tk));
+                next = Some((xs, tk, k));
             }
         }
         Some(lag) => {
@@ -174,7 +174,7 @@ pub fn smooth_track_tv<T: IoFloat, const N: usize>(
                 let mut s = load(states, jl);
                 for w in chain.windows(2).rev() {
                     let (i, j) = (w[0], w[1]);
-                    let (phi, a) = gain(t(j) - t(i))?;
+                    let (phi, a) = gain(t(j) - t(i), j)?;
                     s = step(&phi, &a, &load(states, i), &s);
                 }
                 for c in 0..N {

@@ -9,12 +9,13 @@
 use crate::convert::{guard, to_pyerr};
 use crate::filter::{parse_init, with_threads};
 use abkit_core::filter::{states_from_f64, IoFloat};
-use abkit_core::irregular::AbBackward;
+use abkit_core::irregular::{AbBackward, Kin3Backward};
 use abkit_core::irregular::{
     AbDesign, AbFixed, AbgDesign, AbgFixed, Constant, GainLaw, SingerDesign, Step,
 };
 use abkit_core::ragged::{
-    filter_tracks, AbSmooth, ConstSmooth, Counts, NoPost, Options, PostTrack, Samples, TrackFilter,
+    filter_tracks, AbSmooth, ConstSmooth, Counts, Kin3Smooth, NoPost, Options, PostTrack, Samples,
+    TrackFilter,
 };
 use numpy::ndarray::{ArrayView2, ArrayView3};
 use numpy::{Element, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
@@ -238,6 +239,8 @@ pub(crate) fn constant_laws<const N: usize, const M: usize>(
 /// rows `Phi (n*n) | K (n*m)`), "ab-fixed" (alpha, beta), "ab-design"
 /// (sigma_w/sigma_v), "abg-fixed" (alpha, beta, c*gamma), "abg-design"
 /// (sigma_p, sigma_v, sigma_a, sigma_m), "singer" (tau, q, sigma_pos);
+/// `smoother`: None, "const" (rows `Phi | A`), "ab" (alpha-beta laws, rows
+/// of 5) or "kin3" (3-state kinematic laws, rows of 10; see below);
 /// `out` `(n, N)`, `resid` `(N, m)`, `state` `(n_tracks, STATE_WIDTH)`,
 /// `counts` int64 `(n_tracks, 2)`.
 #[pyfunction]
@@ -401,7 +404,63 @@ pub(crate) fn filter_tracks_py<'py>(
             lag,
         }
     }
+    // 3-state kinematic smoother: rows (kind, p1..p9): kind 0 = per-dt
+    // alpha-beta-gamma design (p1..p4 = sigma_p, sigma_v, sigma_a,
+    // sigma_m), 1 = per-dt Singer design (p1..p3 = tau, q, sigma_pos),
+    // 2 = fixed normalised gain A_N (p1..p9, row-major).
+    let kin3_back = || -> PyResult<Vec<Kin3Backward>> {
+        if sp.is_empty() || !sp.len().is_multiple_of(10) {
+            return Err(PyValueError::new_err(
+                "3-state smoother parameters have the wrong size",
+            ));
+        }
+        let err = |e| to_pyerr((0, e));
+        sp.chunks_exact(10)
+            .map(|r| match r[0] {
+                0.0 => AbgDesign::new(r[1], r[2], r[3], r[4])
+                    .map(|d| Kin3Backward::AbgDesign(d.noise))
+                    .map_err(err),
+                1.0 => SingerDesign::new(r[1], r[2], r[3])
+                    .map(|d| Kin3Backward::Singer {
+                        tau: d.tau,
+                        q: d.q,
+                        sigma_pos: d.sigma_pos,
+                    })
+                    .map_err(err),
+                2.0 if r[1..].iter().all(|v| v.is_finite()) => {
+                    Ok(Kin3Backward::Fixed(std::array::from_fn(|i| {
+                        std::array::from_fn(|j| r[1 + 3 * i + j])
+                    })))
+                }
+                _ => Err(PyValueError::new_err(
+                    "3-state smoother parameters: unknown kind or non-finite gain",
+                )),
+            })
+            .collect()
+    };
+    fn kin3_post(back: &[Kin3Backward], t_nominal: f64, lag: Option<usize>) -> Kin3Smooth<'_> {
+        Kin3Smooth {
+            back,
+            t_nominal,
+            lag,
+        }
+    }
     match &law {
+        Law::AbgFixed(l) if smoother == Some("kin3") => {
+            kin(3)?;
+            let b = kin3_back()?;
+            typed!(l, 3, 1, &kin3_post(&b, t_nominal, lag))
+        }
+        Law::AbgDesign(l) if smoother == Some("kin3") => {
+            kin(3)?;
+            let b = kin3_back()?;
+            typed!(l, 3, 1, &kin3_post(&b, t_nominal, lag))
+        }
+        Law::Singer(l) if smoother == Some("kin3") => {
+            kin(3)?;
+            let b = kin3_back()?;
+            typed!(l, 3, 1, &kin3_post(&b, t_nominal, lag))
+        }
         Law::AbFixed(l) if smoother == Some("ab") => {
             kin(2)?;
             let b = ab_back()?;

@@ -122,3 +122,122 @@ fn ab_backward_fixed_scales_with_dt() {
     let (_, a) = AbBackward::Fixed(an).at(2.0);
     assert_eq!(a, [[0.9, 0.6], [-0.1, 0.8]]);
 }
+
+/// Brute force: iterate the Riccati recursion of `(phi, q, r)` (position
+/// measured) to convergence, then `A = P Phi' M^-1`.
+fn brute_rts(
+    phi: nalgebra::Matrix3<f64>,
+    q: nalgebra::Matrix3<f64>,
+    r: f64,
+) -> nalgebra::Matrix3<f64> {
+    let mut m = nalgebra::Matrix3::<f64>::identity() * 1e3;
+    let mut p = m;
+    for _ in 0..200_000 {
+        let k = m.column(0) / (m[(0, 0)] + r);
+        p = m - k * m.row(0);
+        p = (p + p.transpose()) * 0.5;
+        m = phi * p * phi.transpose() + q;
+    }
+    p * phi.transpose() * m.try_inverse().unwrap()
+}
+
+fn assert_close3(a: &[[f64; 3]; 3], b: &nalgebra::Matrix3<f64>, tol: f64, what: &str) {
+    let scale = b.amax();
+    for i in 0..3 {
+        for j in 0..3 {
+            let err = (a[i][j] - b[(i, j)]).abs();
+            assert!(
+                err <= tol * b[(i, j)].abs().max(1e-9 * scale),
+                "{what}: A[{i}][{j}] = {} vs {}",
+                a[i][j],
+                b[(i, j)]
+            );
+        }
+    }
+}
+
+#[test]
+fn kin3_backward_abg_design_is_the_rts_gain_of_the_riccati_solution() {
+    let noise = [0.3, 0.2, 0.1, 1.0];
+    for &dt in &[0.3, 1.0, 2.5] {
+        let phi = nalgebra::Matrix3::new(1.0, dt, 0.5 * dt * dt, 0.0, 1.0, dt, 0.0, 0.0, 1.0);
+        let q = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(0.3, 0.2, 0.1));
+        let a_ref = brute_rts(phi, q, 1.0);
+        let (phi_k, a) = Kin3Backward::AbgDesign(noise).at(dt).unwrap();
+        assert_eq!(phi_k, phi_ca(dt));
+        assert_close3(&a, &a_ref, 1e-9, &format!("abg dt={dt}"));
+    }
+    // Only the acceleration driven (closed-form gains).
+    let dt = 0.7;
+    let phi = nalgebra::Matrix3::new(1.0, dt, 0.5 * dt * dt, 0.0, 1.0, dt, 0.0, 0.0, 1.0);
+    let q = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(0.0, 0.0, 0.4));
+    let (_, a) = Kin3Backward::AbgDesign([0.0, 0.0, 0.4, 2.0])
+        .at(dt)
+        .unwrap();
+    assert_close3(&a, &brute_rts(phi, q, 2.0), 1e-9, "abg accel-only");
+}
+
+#[test]
+fn kin3_backward_singer_is_the_rts_gain_of_the_riccati_solution() {
+    let (tau, q, sp) = (20.0, 0.1, 10.0);
+    for &dt in &[0.5, 1.0, 7.0] {
+        let (phi, qm) = crate::singer::model(dt, tau, q).unwrap();
+        let a_ref = brute_rts(phi, qm, sp * sp);
+        let (phi_k, a) = Kin3Backward::Singer {
+            tau,
+            q,
+            sigma_pos: sp,
+        }
+        .at(dt)
+        .unwrap();
+        for i in 0..3 {
+            for j in 0..3 {
+                let rel = (phi_k[i][j] - phi[(i, j)]).abs() / phi[(i, j)].abs().max(1e-300);
+                assert!(rel < 1e-13 || phi_k[i][j] == phi[(i, j)], "phi dt={dt}");
+            }
+        }
+        assert_close3(&a, &a_ref, 1e-8, &format!("singer dt={dt}"));
+    }
+}
+
+#[test]
+fn kin3_backward_fixed_is_the_kalman_equivalent_gain_scaled_to_dt() {
+    // Gains designed at h = 1; their Kalman-equivalent model (Corollary
+    // noise ratios, h = 1 units) has A_N; at dt the physical gain is the
+    // RTS gain of the model scaled so that the normalised model is the same.
+    let [a, b, g] = crate::abg::from_noise(0.05, 0.02, 0.01, 1.0, 1.0).unwrap();
+    let an = abg_backward_normalised(a, b, g).unwrap();
+    let [qp, qv, qa] = crate::abg::noise_ratios(a, b, g, 1.0).unwrap();
+    for &dt in &[1.0, 0.25, 4.0] {
+        let phi = nalgebra::Matrix3::new(1.0, dt, 0.5 * dt * dt, 0.0, 1.0, dt, 0.0, 0.0, 1.0);
+        // Physical noise of the same normalised model at dt.
+        let q = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(
+            qp,
+            qv / (dt * dt),
+            qa / dt.powi(4),
+        ));
+        let a_ref = brute_rts(phi, q, 1.0);
+        let (_, a_dt) = Kin3Backward::Fixed(an).at(dt).unwrap();
+        assert_close3(&a_dt, &a_ref, 1e-9, &format!("fixed dt={dt}"));
+    }
+}
+
+#[test]
+fn kin3_cache_returns_the_uncached_values() {
+    let back = Kin3Backward::Singer {
+        tau: 5.0,
+        q: 0.3,
+        sigma_pos: 2.0,
+    };
+    let mut c = Kin3Cache::default();
+    for &dt in &[
+        1.0, 0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 0.5, 1.0,
+    ] {
+        assert_eq!(c.get(&back, dt).unwrap(), back.at(dt).unwrap());
+    }
+    // A failing design is an error, not a cached value.
+    assert!(c.get(&back, 1e-80).is_err());
+    assert!(Kin3Backward::AbgDesign([0.0, 0.0, 0.1, 1.0])
+        .at(1e-90)
+        .is_err());
+}

@@ -349,3 +349,39 @@ fn smoothing_steps_whose_backward_gain_overflows_are_errors_naming_t() {
         .unwrap();
     assert!(matches!(e, Error::Domain { name: "t", .. }), "{e:?}");
 }
+
+#[test]
+fn kin3_smoother_errors_name_the_track_and_sample() {
+    let back = [crate::irregular::Kin3Backward::Singer {
+        tau: 20.0,
+        q: 0.1,
+        sigma_pos: 2.0,
+    }];
+    let post = Kin3Smooth {
+        back: &back,
+        t_nominal: 1.0,
+        lag: None,
+    };
+    let ts = [0.0, 1.0, 2.0, 2.0 + 1e-70, 3.0];
+    let mut x = vec![0.0, 1.0, 2.0, 3.0, 4.0];
+    let mut v = vec![1.0; 5];
+    let mut a = vec![0.0; 5];
+    let tf = |k: usize| ts[k];
+    let mut st: [&mut [f64]; 3] = [&mut x, &mut v, &mut a];
+    // The backward pass reaches the step 2 -> 3 (dt = 1e-70: q dt^5 underflows).
+    match PostTrack::<f64, 3>::post(&post, 7, &mut st, Some(&tf), None) {
+        Err(Error::Data { track, sample, msg }) => {
+            assert_eq!((track, sample), (7, 3));
+            assert!(msg.contains("no backward gain"), "{msg}");
+        }
+        other => panic!("expected a data error, got {other:?}"),
+    }
+    // Without the bad step the smoother runs and moves the estimates.
+    let ts = [0.0, 1.0, 2.0, 3.0, 4.0];
+    let tf = |k: usize| ts[k];
+    let (mut x, mut v, mut a) = (vec![0.0, 1.5, 1.7, 3.2, 4.0], vec![1.0; 5], vec![0.0; 5]);
+    let mut st: [&mut [f64]; 3] = [&mut x, &mut v, &mut a];
+    PostTrack::<f64, 3>::post(&post, 0, &mut st, Some(&tf), None).unwrap();
+    assert_eq!(x[4], 4.0);
+    assert!(x[1] != 1.5 && x[1].is_finite());
+}

@@ -32,7 +32,7 @@ fn time_varying_smoother_skips_nan_and_breaks_at_gaps() {
     let xf0 = x0.clone();
     let xf1 = x1.clone();
     let tf = |k: usize| t[k];
-    let mut gain = |dt: f64| -> crate::Result<PhiAndGain<2>> {
+    let mut gain = |dt: f64, _j: usize| -> crate::Result<PhiAndGain<2>> {
         Ok(([[1.0, dt], [0.0, 1.0]], [[0.1 * dt, 0.0], [0.0, 0.1 * dt]]))
     };
     {
