@@ -37,7 +37,8 @@ class FrameSummary:
         (``on_duplicate="drop"``), and restarts after gaps (``max_gap``).
     sorted : bool
         Whether the rows had to be reordered (``False``: already grouped by
-        id and ordered by time, nothing was copied to sort).
+        id and ordered by time, or a time-ordered feed run row by row;
+        nothing was copied to sort).
     """
 
     __slots__ = ("ids", "n_rows", "n_dropped", "n_restarts", "sorted")
@@ -457,9 +458,12 @@ def filter(
     Rows are grouped by id and ordered by time with one stable sort (ties
     keep their row order: with ``on_duplicate="drop"`` the first row at a
     timestamp is kept). A frame already grouped by id (in any id order) and
-    ordered by time within each track is not reordered, and float64 columns
-    without nulls (numpy, Arrow or polars backed) are handed to the kernel
-    without a copy. Rows dropped as duplicates have NaN estimates.
+    ordered by time within each track is not reordered; nor is a
+    time-ordered feed (rows ordered by time, tracks interleaved), which runs
+    row by row with one filter state per track (the same results, bit for
+    bit). float64 columns without nulls (numpy, Arrow or polars backed) are
+    handed to the kernel without a copy. Rows dropped as duplicates have NaN
+    estimates.
 
     Examples
     --------
