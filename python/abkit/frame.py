@@ -271,7 +271,12 @@ def _codes(df: Any, lib: str, id: str) -> np.ndarray:
     if lib == "pandas":
         import pandas as pd
 
-        codes, _ = pd.factorize(df[id], sort=False, use_na_sentinel=True)
+        col = df[id]
+        if isinstance(col.dtype, np.dtype) and col.dtype.kind in "iu":
+            codes = _arrow_codes(col.to_numpy())  # no missing values possible
+            if codes is not None:
+                return codes
+        codes, _ = pd.factorize(col, sort=False, use_na_sentinel=True)
         if codes.size and codes.min() < 0:
             raise ValueError(f"id column {id!r}: missing id at row {int(np.argmin(codes))}")
         return codes
@@ -279,17 +284,31 @@ def _codes(df: Any, lib: str, id: str) -> np.ndarray:
     if s.null_count():
         raise ValueError(f"id column {id!r}: missing id at row {int(s.is_null().arg_max())}")
     try:
-        # hash-based codes in order of first appearance (as pandas.factorize)
+        arr = s.rechunk().to_arrow()
+    except Exception:  # pragma: no cover - no pyarrow
+        arr = None
+    codes = None if arr is None else _arrow_codes(arr)
+    if codes is None:  # no pyarrow, or a type it cannot encode: a sort
+        return s.rank("dense").to_numpy().astype(np.int64) - 1
+    return codes
+
+
+def _arrow_codes(values: Any) -> Optional[np.ndarray]:
+    """Track codes in order of first appearance (as ``pandas.factorize``)
+    by pyarrow's hash-based ``dictionary_encode`` (a few times faster than
+    factorize on interleaved ids, no sort); None without pyarrow or for a
+    type it cannot encode."""
+    try:
         import pyarrow as pa
         import pyarrow.compute as pc
 
-        arr = s.rechunk().to_arrow()
+        arr = values if isinstance(values, (pa.Array, pa.ChunkedArray)) else pa.array(values)
         if isinstance(arr, pa.ChunkedArray):
             arr = arr.combine_chunks()
         enc = pc.dictionary_encode(arr)
         return np.asarray(enc.indices.to_numpy(zero_copy_only=False), dtype=np.int64)
-    except Exception:  # no pyarrow, or a type it cannot encode: a sort
-        return s.rank("dense").to_numpy().astype(np.int64) - 1
+    except Exception:
+        return None
 
 
 def _float_values(df: Any, lib: str, name: str) -> np.ndarray:
