@@ -64,6 +64,22 @@ def feed_frame(seed: int, n_tracks: int = 12, n: int = 600, dup: bool = False, n
     return pd.DataFrame({"id": names, "t": t, "x": x, "y": y})
 
 
+def assert_first_duplicate_in_time(df, msg):
+    """``msg`` names the row of the earliest (in time, then row order)
+    report whose timestamp repeats an earlier report of its track."""
+    row = int(msg.split("row ")[1].split(":")[0])
+    assert f"track id={df['id'][row]!r}" in msg
+    order = np.lexsort((np.arange(len(df)), df["t"].to_numpy()))
+    last = {}
+    for r in order:
+        tid = df["id"][r]
+        if tid in last and df["t"][r] <= last[tid]:
+            assert r == row, (r, row)
+            return
+        last[tid] = df["t"][r]
+    raise AssertionError("no duplicate in the frame")
+
+
 def grouped(df, **kw):
     """The same call through the grouped path (rows reordered by track)."""
     orig = frame.group
@@ -114,6 +130,31 @@ def test_feed_equals_grouped_path_and_each_track_alone(lib, name, opts):
             assert np.array_equal(got, r.states, equal_nan=True)
 
 
+@pytest.mark.parametrize("lib", ["pandas", "polars"])
+@pytest.mark.parametrize("name", ["ab-design", "abg-fixed", "singer"])
+def test_shuffled_rows_sorted_by_time_then_fed(lib, name):
+    """Rows in no order: sorted by time once and run as a feed; the same
+    as the grouped path (which sorts by id and time), bit for bit, errors
+    included."""
+    f = FILTERS[name]()
+    df = feed_frame(seed=21, dup=True).sample(frac=1.0, random_state=3).reset_index(drop=True)
+    src = df if lib == "pandas" else pl.from_pandas(df)
+    kw = dict(id="id", time="t", columns=["x", "y"], filter=f, return_summary=True, on_duplicate="drop", max_gap=3.0)
+    out, s = frame.filter(src, **kw)
+    ref, s_ref = grouped(src, **kw)
+    assert s.sorted is True and s_ref.sorted is True
+    assert_frames_identical(out, ref, [c for c in out.columns if c not in df.columns])
+    for k in ("ids", "n_rows", "n_dropped", "n_restarts"):
+        assert np.array_equal(getattr(s, k), getattr(s_ref, k)), k
+    assert s.n_dropped.sum() > 0 and s.n_restarts.sum() > 0
+    kw.pop("on_duplicate")
+    with pytest.raises(ValueError) as e_feed:
+        frame.filter(src, **kw)
+    # the grouped path reports the first track with an error, the feed the
+    # first error in time: both name a repeated report of its track
+    assert_first_duplicate_in_time(df, str(e_feed.value))
+
+
 def test_feed_against_independent_reference_loop():
     df = feed_frame(seed=3, n_tracks=5, n=800)
     out = frame.filter(df, id="id", time="t", columns="x", filter=abkit.AlphaBetaFilter(0.5, 0.2, 1.0))
@@ -142,15 +183,8 @@ def test_feed_errors_name_the_column_track_and_row():
     df = feed_frame(seed=5, dup=True)
     with pytest.raises(ValueError) as e_feed:
         frame.filter(df, id="id", time="t", columns=["x", "y"], filter=FILTERS["ab-fixed"]())
-    with pytest.raises(ValueError) as e_ref:
-        grouped(df, id="id", time="t", columns=["x", "y"], filter=FILTERS["ab-fixed"]())
-    assert str(e_feed.value) == str(e_ref.value)
     assert "column 'x', track id=" in str(e_feed.value) and "on_duplicate='drop'" in str(e_feed.value)
-    # the row named is a repeated timestamp of that track
-    row = int(str(e_feed.value).split("row ")[1].split(":")[0])
-    tid = df["id"][row]
-    prev = df[(df["id"] == tid) & (df.index < row)]["t"].max()
-    assert df["t"][row] <= prev
+    assert_first_duplicate_in_time(df, str(e_feed.value))
     # an Inf measurement: named by column, track and row
     df = feed_frame(seed=6)
     df.loc[300, "y"] = np.inf
@@ -163,9 +197,14 @@ def test_feed_is_used_only_for_time_ordered_rows():
     g = frame.group(codes, np.array([0.0, 0.0, 1.0, 2.0, 2.0, 3.0]), feed=True)
     assert g.feed is not None and g.order is None
     assert g.row(0, 2) == 5 and g.row(1, 1) == 3
-    # not ordered by time: sorted as before
+    # not ordered by time: one stable sort by time, then a feed
     g = frame.group(codes, np.array([0.0, 0.0, 1.0, 2.0, 2.0, 1.5]), feed=True)
-    assert g.feed is None and g.order is not None
+    assert g.feed is not None and np.array_equal(g.order, [0, 1, 2, 5, 3, 4])
+    assert np.array_equal(g.feed, codes[g.order])
+    assert g.row(0, 2) == 5 and g.row(2, 0) == 4
+    # without timestamps: grouped by the radix sort
+    g = frame.group(codes, None, feed=True)
+    assert g.feed is None and np.array_equal(g.order, [0, 2, 5, 1, 3, 4])
     # grouped and ordered: no feed, no order
     g = frame.group(np.array([0, 0, 1, 1]), np.array([0.0, 1.0, 0.0, 1.0]), feed=True)
     assert g.feed is None and g.order is None
@@ -214,3 +253,25 @@ def test_run_feed_bad_input():
     with pytest.raises(ValueError, match="m = 1"):
         fv = abkit.FixedGainFilter(np.eye(2), np.eye(2), 0.5 * np.eye(2))
         _tracks.run_feed(fv, [z], None, np.zeros(4, np.int64), 1)
+
+
+@pytest.mark.parametrize("threads", [None, 1, 2])
+def test_time_order_is_numpys_stable_argsort(threads):
+    """The Rust time sort behind shuffled frames against numpy's stable
+    argsort: ties in row order, -0.0 == 0.0, +-inf, NaN last."""
+    from abkit import _abkit
+
+    rng = np.random.default_rng(5)
+    cases = [
+        rng.uniform(-1e6, 1e6, 100_000),
+        np.round(rng.uniform(-5, 5, 50_000), 1),  # many ties
+        np.array([np.nan, -0.0, 0.0, np.inf, -np.inf, np.nan, -0.0, 1.0, 1.0, -5e-324, 5e-324]),
+        np.zeros(0),
+        rng.uniform(0, 10, 2000)[::3],  # strided
+    ]
+    for t in cases:
+        if t.size > 100:
+            t[rng.random(t.size) < 0.02] = np.nan
+            t[rng.random(t.size) < 0.02] = -0.0
+            t[rng.random(t.size) < 0.01] = np.inf
+        assert np.array_equal(_abkit.time_order(t, threads), np.argsort(t, kind="stable"))

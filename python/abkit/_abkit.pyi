@@ -38,6 +38,7 @@ __all__ = [
     "MAX_STATES",
     "filter_tracks",
     "filter_feed",
+    "time_order",
     "__version__",
 ]
 
@@ -121,6 +122,7 @@ def filter_feed(
     resid: _FArr | None = None,
     threads: int | None = None,
 ) -> None: ...
+def time_order(t: _F64, threads: int | None = None) -> npt.NDArray[np.int64]: ...
 def filter_tracks(
     z: _FArr,
     t: _F64 | None,

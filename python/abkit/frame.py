@@ -15,6 +15,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from . import _abkit
 from .filters import FilterResult, FilterState, FixedGainFilter
 from ._tracks import check_max_gap, check_on_duplicate
 
@@ -97,7 +98,8 @@ class Grouping:
 
     def row(self, track: int, sample: int) -> int:
         if self.feed is not None:
-            return int(np.flatnonzero(self.feed == track)[sample])
+            i = int(np.flatnonzero(self.feed == track)[sample])
+            return i if self.order is None else int(self.order[i])
         i = int(self.offsets[track]) + sample
         return i if self.order is None else int(self.order[i])
 
@@ -138,10 +140,15 @@ def group(codes: np.ndarray, t: Optional[np.ndarray], feed: bool = False) -> Gro
         ok = not bool(np.any((np.diff(t) < 0) & ~change))
     if ok:
         return Grouping(None, np.concatenate([[0], np.flatnonzero(change) + 1, [n]]).astype(np.int64), n)
-    if feed and t is not None and bool(np.all(t[1:] >= t[:-1])):
-        # a time-ordered feed: each track's rows are in time order as they
-        # stand (ties in row order, as the stable sort would keep them)
-        return Grouping(None, np.zeros(k + 1, dtype=np.int64), n, feed=codes)
+    if feed and t is not None:
+        if bool(np.all(t[1:] >= t[:-1])):
+            # a time-ordered feed: each track's rows are in time order as
+            # they stand (ties in row order, as the stable sort keeps them)
+            return Grouping(None, np.zeros(k + 1, dtype=np.int64), n, feed=codes)
+        # any other order: one stable sort by time makes it a feed (the
+        # same order within each track as grouping would give)
+        by_t = _abkit.time_order(np.ascontiguousarray(t, dtype=np.float64))  # = np.argsort(t, kind="stable")
+        return Grouping(by_t, np.zeros(k + 1, dtype=np.int64), n, feed=codes[by_t])
     order = _stable_order(codes, k)
     cs = codes[order]
     same = cs[1:] == cs[:-1]
@@ -559,8 +566,12 @@ def filter(
     dropped = np.zeros(n_tracks, dtype=np.int64)
     restarts = np.zeros(n_tracks, dtype=np.int64)
     if g.n and g.feed is not None:
-        dropped, restarts, first = _run_feed(filter, g.feed, n_tracks, zs, t, cols, names, new, init=init,
-                                             return_residuals=return_residuals, kw=kw, where=where)
+        dropped, restarts, first = _run_feed(filter, g.feed, n_tracks, [g.take(z) for z in zs], None if t is None else g.take(t),
+                                             cols, names, new, init=init, return_residuals=return_residuals, kw=kw, where=where)
+        if g.order is not None:  # sorted by time for the run: back to the frame's order
+            first = g.order[first]
+            for nm in list(new):
+                new[nm] = g.put(new[nm])
     elif g.n:
         results = run_grouped(filter, g, zs, t, init=init, return_residuals=return_residuals, kw=kw, where=where, names=cols)
         dropped, restarts = results[0].n_dropped, results[0].n_restarts

@@ -195,6 +195,37 @@ pub fn filter_feed<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>
     results.into_iter().collect()
 }
 
+/// The stable ascending order of timestamps `t` (ties in index order),
+/// equal to numpy's `argsort(t, kind="stable")`: `-0.0 == 0.0`, NaN last.
+/// The keys are the floats' bits mapped to ordered integers, paired with
+/// the index (so the pairs are distinct and an unstable sort is stable),
+/// sorted on rayon's pool when `parallel`.
+pub fn time_order(t: &[f64], parallel: bool) -> Vec<i64> {
+    #[inline]
+    fn key(x: f64) -> u64 {
+        if x.is_nan() {
+            return u64::MAX;
+        }
+        let b = (x + 0.0).to_bits(); // -0.0 + 0.0 = +0.0
+        if b >> 63 == 1 {
+            !b
+        } else {
+            b | (1 << 63)
+        }
+    }
+    let mut pairs: Vec<(u64, u64)> = t
+        .iter()
+        .enumerate()
+        .map(|(i, &x)| (key(x), i as u64))
+        .collect();
+    if parallel {
+        pairs.par_sort_unstable();
+    } else {
+        pairs.sort_unstable();
+    }
+    pairs.into_iter().map(|(_, i)| i as i64).collect()
+}
+
 #[allow(clippy::too_many_arguments)]
 fn run_column_dispatch<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     filt: &TrackFilter<'_, L, N, M>,
@@ -487,6 +518,30 @@ mod tests {
             [[1.0, 0.0, 0.0]],
             [[1.0], [0.0], [0.0]],
         );
+    }
+
+    #[test]
+    fn time_order_is_a_stable_argsort_with_nan_last() {
+        let t = [
+            3.0,
+            f64::NAN,
+            -0.0,
+            0.0,
+            f64::NEG_INFINITY,
+            -0.0,
+            f64::INFINITY,
+            -1.5,
+            3.0,
+            -f64::NAN,
+            0.0,
+            -1e-300,
+            1e-300,
+        ];
+        let want = [4, 7, 11, 2, 3, 5, 10, 12, 0, 8, 6, 1, 9];
+        for par in [false, true] {
+            assert_eq!(time_order(&t, par), want);
+        }
+        assert!(time_order(&[], true).is_empty());
     }
 
     #[test]

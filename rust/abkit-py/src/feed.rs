@@ -6,7 +6,7 @@
 use crate::convert::{guard, to_pyerr};
 use crate::filter::{parse_init, with_threads};
 use crate::tracks::{constant_laws, parse_law, samples, Law};
-use abkit_core::feed::{filter_feed, TrackRows};
+use abkit_core::feed::{filter_feed, time_order, TrackRows};
 use abkit_core::filter::{states_from_f64, IoFloat};
 use abkit_core::irregular::GainLaw;
 use abkit_core::ragged::{Counts, Options, Samples, TrackFilter};
@@ -247,4 +247,26 @@ pub(crate) fn filter_feed_py<'py>(
             }
         }
     }
+}
+
+/// The stable order of timestamps (numpy's `argsort(t, kind="stable")`:
+/// ties in row order, `-0.0 == 0.0`, NaN last), sorted in Rust on rayon's
+/// pool without the GIL.
+#[pyfunction]
+#[pyo3(name = "time_order", signature = (t, threads=None))]
+pub(crate) fn time_order_py<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let owned: Vec<f64>;
+    let ts: &[f64] = match t.as_slice() {
+        Ok(s) => s,
+        Err(_) => {
+            owned = t.as_array().iter().copied().collect();
+            &owned
+        }
+    };
+    let order = py.detach(|| guard(|| with_threads(threads, |par| time_order(ts, par))))??;
+    Ok(PyArray1::from_vec(py, order))
 }

@@ -59,7 +59,7 @@ mod _abkit {
         alphabeta_from_tracking_error, alphabeta_from_tracking_index,
     };
     #[pymodule_export]
-    use super::feed::filter_feed_py;
+    use super::feed::{filter_feed_py, time_order_py};
     #[pymodule_export]
     use super::filter::{filter_alphabeta, filter_fixed_gain};
     #[pymodule_export]
