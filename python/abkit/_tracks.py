@@ -166,6 +166,24 @@ def check_no_inf_after(f: "FixedGainFilter", z3: np.ndarray, off: np.ndarray, pa
         )
 
 
+def _kernel_law(f: "FixedGainFilter", timed: bool, what: str) -> Tuple[str, np.ndarray, np.ndarray]:
+    """The track kernel's gain law and parameter rows for ``f`` (with
+    timestamps: the filter's law of ``dt``; without: its own gains at
+    ``T``, by the alpha-beta fast path where it applies) and the period
+    ``T`` (one for all tracks: ``what`` starts the error otherwise)."""
+    if timed:
+        law, params = f._time_law()
+    elif f._tv_law is not None and f._tv_law[0] in ("ab-fixed", "ab-design"):
+        law, params = "ab-fixed", f._params[:, :2]  # type: ignore[attr-defined]
+    else:
+        law = "constant"
+        params = np.concatenate([f._phi.reshape(f.n_params, -1), f._k.reshape(f.n_params, -1)], axis=1)
+    tn = f._t
+    if not np.all(tn == tn[0]):
+        raise ValueError(f"{what} one sampling period T for all tracks (the filter has per-track T)")
+    return law, params, tn
+
+
 def run_tracks(
     f: "FixedGainFilter",
     z: Any,
@@ -221,16 +239,7 @@ def run_tracks(
         t_arr = check_t(t, sample_shape)
         t2 = t_arr.reshape(z3.shape[:2]) if t_arr.ndim == 1 else t_arr
         t2 = _aligned(t2)
-        law, params = f._time_law()
-    elif f._tv_law is not None and f._tv_law[0] in ("ab-fixed", "ab-design"):
-        # the filter's own gains at T (the alpha-beta fast path of the kernel)
-        law, params = "ab-fixed", f._params[:, :2]  # type: ignore[attr-defined]
-    else:
-        law = "constant"
-        params = np.concatenate([f._phi.reshape(f.n_params, -1), f._k.reshape(f.n_params, -1)], axis=1)
-    tn = f._t
-    if not np.all(tn == tn[0]):
-        raise ValueError("t and offsets need one sampling period T for all tracks (the filter has per-track T)")
+    law, params, tn = _kernel_law(f, t is not None, "t and offsets need")
     packed, init_mode = f._initial_state(init, state, n_tracks)
     if state is None:
         packed[:, T_LAST] = np.nan
@@ -364,15 +373,7 @@ def run_feed(
     f._check_params(n_tracks)
     if t is not None:
         t = _aligned(check_t(t, (n_rows,)))
-        law, params = f._time_law()
-    elif f._tv_law is not None and f._tv_law[0] in ("ab-fixed", "ab-design"):
-        law, params = "ab-fixed", f._params[:, :2]  # type: ignore[attr-defined]
-    else:
-        law = "constant"
-        params = np.concatenate([f._phi.reshape(f.n_params, -1), f._k.reshape(f.n_params, -1)], axis=1)
-    tn = f._t
-    if not np.all(tn == tn[0]):
-        raise ValueError("a feed needs one sampling period T for all tracks (the filter has per-track T)")
+    law, params, tn = _kernel_law(f, t is not None, "a feed needs")
     packed, init_mode = f._initial_state(init, None, n_tracks)
     packed[:, T_LAST] = np.nan
     packed[:, T_HELD] = np.nan
