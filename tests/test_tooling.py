@@ -15,7 +15,7 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.parametrize("module", ["abkit.abg", "abkit.alphabeta", "abkit.riccati", "abkit.singer", "abkit.plot", "abkit.cli", "abkit.filters", "abkit.kalman"])
+@pytest.mark.parametrize("module", ["abkit.abg", "abkit.alphabeta", "abkit.riccati", "abkit.singer", "abkit.plot", "abkit.cli", "abkit.filters", "abkit.kalman", "abkit.feed"])
 def test_doctests(module: str) -> None:
     """Every docstring example runs and prints what it shows."""
     pytest.importorskip("matplotlib")

@@ -20,6 +20,8 @@ kalman
     The time-varying Kalman filter recursion (paper 002), batched.
 filters
     Batched filtering: AlphaBetaFilter, AlphaBetaGammaFilter, FixedGainFilter, Tracker.
+feed
+    FeedTracker: a live feed of reports from many tracks, batch by batch.
 riccati
     Discrete algebraic Riccati equation (checked, stabilising) and the
     steady-state Kalman filter.
@@ -32,11 +34,12 @@ plot
     ``abkit[plot]``.
 """
 
-from . import abg, alphabeta, filters, kalman, riccati, singer
+from . import abg, alphabeta, feed, filters, kalman, riccati, singer
 from . import dask, frame  # light: pandas, polars and dask are imported when used
 from ._abkit import __version__
 from ._errors import AccuracyWarning
 from .alphabeta import AlphaBeta
+from .feed import FeedTracker
 from .filters import (
     AlphaBetaFilter,
     AlphaBetaGammaFilter,
@@ -51,6 +54,7 @@ __all__ = [
     "abg",
     "alphabeta",
     "dask",
+    "feed",
     "filters",
     "frame",
     "kalman",
@@ -60,6 +64,7 @@ __all__ = [
     "AlphaBeta",
     "AlphaBetaFilter",
     "AlphaBetaGammaFilter",
+    "FeedTracker",
     "FilterResult",
     "FilterState",
     "FixedGainFilter",

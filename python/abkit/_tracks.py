@@ -320,6 +320,13 @@ def run_axes(f: "FixedGainFilter", z: Any, axes: Any, *, t: Any, offsets: Any, s
     )
 
 
+def fresh_tables(packed: np.ndarray) -> np.ndarray:
+    """Packed states of tracks that have seen no sample (no timestamps)."""
+    packed[:, T_LAST] = np.nan
+    packed[:, T_HELD] = np.nan
+    return packed
+
+
 def run_feed(
     f: "FixedGainFilter",
     zs: Any,
@@ -332,6 +339,7 @@ def run_feed(
     init: Any = "two-point",
     return_residuals: bool = True,
     threads: Optional[int] = None,
+    state: Optional[np.ndarray] = None,
 ) -> Tuple[np.ndarray, Optional[np.ndarray], np.ndarray, np.ndarray]:
     """A feed of reports in arrival order (rows of many tracks interleaved)
     through the row kernel (``abkit-core`` module ``feed``): row ``r`` is a
@@ -343,7 +351,10 @@ def run_feed(
 
     Returns ``(states (n_columns, n, n_rows), residuals (n_columns, n_rows)
     or None, counts (n_tracks, 2) [n_dropped, n_restarts] of column 0,
-    rows (n_tracks, 2) [n_rows, first row])``. A data error raises
+    rows (n_tracks, 2) [n_rows, first row])``. ``state``: the per-track
+    state tables of an earlier call (``(n_columns * n_tracks, STATE_WIDTH)``
+    float64, updated in place; a string ``init`` applies to tracks still
+    in phase 0), else fresh tables. A data error raises
     ``ValueError`` whose message starts ``column c: track i, sample k``
     (``k``: the sample within the track)."""
     if f.m != 1:
@@ -374,10 +385,15 @@ def run_feed(
     if t is not None:
         t = _aligned(check_t(t, (n_rows,)))
     law, params, tn = _kernel_law(f, t is not None, "a feed needs")
-    packed, init_mode = f._initial_state(init, None, n_tracks)
-    packed[:, T_LAST] = np.nan
-    packed[:, T_HELD] = np.nan
-    state = np.ascontiguousarray(np.tile(packed, (len(cols), 1)))
+    if state is None:
+        packed, init_mode = f._initial_state(init, None, n_tracks)
+        state = np.ascontiguousarray(np.tile(fresh_tables(packed), (len(cols), 1)))
+    else:
+        if not isinstance(init, str):
+            raise ValueError("init must be 'two-point' or 'first' when state tables are given")
+        _, init_mode = f._initial_state(init, None, 0)
+        if state.shape != (len(cols) * n_tracks, _W) or state.dtype != np.float64 or not state.flags.c_contiguous:
+            raise ValueError(f"state must be C-contiguous float64 of shape ({len(cols) * n_tracks}, {_W})")
     out = np.empty((len(cols), f.n, n_rows), dtype=dt)
     res = np.empty((len(cols), n_rows), dtype=dt) if return_residuals else None
     counts = np.zeros((n_tracks, 2), dtype=np.int64)
