@@ -334,6 +334,51 @@ def test_long_not_grouped_is_loaded_whole_with_a_warning(tmp_path, fmt) -> None:
         assert _eq(got[c], want[c]), c
 
 
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+@pytest.mark.parametrize("chunk", ["1", "13", "1000000"])
+def test_long_time_ordered_feed_streams(tmp_path, fmt, chunk) -> None:
+    """Rows ordered by time, tracks interleaved (an AIS dump): streamed
+    through per-id state tables, no warning, the same estimates as
+    abkit.frame.filter on the whole frame; a time going back in the file
+    falls back to loading it whole."""
+    df = _long_df(7).sort_values("t", kind="stable").reset_index(drop=True)
+    src, dst = tmp_path / f"l.{fmt}", tmp_path / f"o.{fmt}"
+    df.to_csv(src, index=False) if fmt == "csv" else df.to_parquet(src)
+    args = [*LONG, "--chunk-rows", chunk, "--max-gap", "1.5"]
+    out = cli(str(src), "-o", str(dst), *args)
+    assert out.returncode == 0, out.stderr
+    assert "warning" not in out.stderr
+    got = _read(dst, fmt)
+    want = _expected_long(df, abkit.AlphaBetaFilter(0.5, 0.2, 0.5), max_gap=1.5)
+    assert want.attrs["abkit"]["n_restarts"] > 0
+    assert list(got.columns) == list(want.columns) and got["note"].tolist() == df["note"].tolist()
+    for c in want.columns:
+        if c.endswith(("_pos", "_vel", "_res")):
+            assert _eq(got[c], want[c]), c
+    # not ordered by time either: loaded whole with the warning
+    df2 = df.copy()
+    df2.loc[[3, 40]] = df2.loc[[40, 3]].to_numpy()
+    df2.to_parquet(tmp_path / "l2.parquet")
+    out = cli(str(tmp_path / "l2.parquet"), "-o", str(tmp_path / "o2.parquet"), *args)
+    assert out.returncode == 0 and "loading the whole file" in out.stderr
+    want2 = _expected_long(df2, abkit.AlphaBetaFilter(0.5, 0.2, 0.5), max_gap=1.5)
+    assert _eq(_read(tmp_path / "o2.parquet", "parquet")["x_vel"], want2["x_vel"])
+
+
+def test_long_feed_duplicates_raise_naming_file_row_and_column(tmp_path) -> None:
+    df = _long_df(8).sort_values("t", kind="stable").reset_index(drop=True)
+    r = int(np.flatnonzero((df["ship"] == "v1").to_numpy())[4])
+    prev = int(np.flatnonzero((df["ship"] == "v1").to_numpy())[3])
+    df.loc[r, "t"] = df.loc[prev, "t"]  # a repeated report, still in time order
+    df = df.sort_values("t", kind="stable").reset_index(drop=True)
+    df.to_csv(tmp_path / "l.csv", index=False)
+    out = cli(str(tmp_path / "l.csv"), "-o", str(tmp_path / "o.csv"), *LONG, "--chunk-rows", "20")
+    assert out.returncode == 1, out.stderr
+    rows = np.flatnonzero((df["ship"] == "v1").to_numpy())
+    assert f"l.csv, row {rows[4] + 1} (ship 'v1'), column 't': t=" in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "o.csv").exists()
+
+
 def test_long_times_going_back_within_a_track_fall_back(tmp_path) -> None:
     df = _long_df(3)
     i = int(np.flatnonzero((df["ship"] == df["ship"].shift()).to_numpy())[5])

@@ -54,6 +54,10 @@ class _NotStreamable(Exception):
     track): the caller falls back to loading the file whole."""
 
 
+class _NotGrouped(_NotStreamable):
+    """The rows are not grouped by id: a time-ordered feed may still stream."""
+
+
 # -- progress bar ------------------------------------------------------------------------
 class Progress:
     """A small progress bar on stderr, drawn at most 10 times a second; silent
@@ -117,8 +121,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         description="Filter a file of tracks and write the estimates in the same format. "
         "Arrays (.npy/.npz): (n_samples,) or (n_tracks, n_samples). Tables (CSV/Parquet): wide "
         "(no --id: each measurement column is one track, each row a sample) or long (--id: one row "
-        "per report). The file is streamed in chunks of --chunk-rows; long tables must be grouped by "
-        "id to stream (otherwise they are loaded whole, with a warning). The filter is designed with "
+        "per report). The file is streamed in chunks of --chunk-rows; long tables stream when grouped by "
+        "id or ordered by --time (otherwise they are loaded whole, with a warning). The filter is designed with "
         "the flags of 'abkit design alphabeta|abg|singer'.",
         epilog="Exit status: 0 success, 1 bad data or a missing optional dependency, 2 usage error.",
     )
@@ -485,10 +489,17 @@ class _Job:
             self._wide(reader, time_col)
             return
         try:
-            self._long(reader, id_col, time_col, stream=True)
+            try:
+                self._long(reader, id_col, time_col, stream=True)
+            except _NotGrouped as exc:
+                if time_col is None:
+                    raise
+                reader = _TableReader(self.src, self.fmt, self.chunk, id_col, time_col, reader.given)
+                self._feed(reader, id_col, time_col, exc)
         except _NotStreamable as exc:
             print(f"abkit run: warning: {self.src}: {exc}; loading the whole file (memory grows with the file; "
-                  f"group the rows by --id, ordered by --time within a track, to stream)", file=sys.stderr)
+                  f"group the rows by --id, ordered by --time within a track, or order them by --time, to stream)",
+                  file=sys.stderr)
             reader = _TableReader(self.src, self.fmt, self.chunk, id_col, time_col, reader.given)
             self._long(reader, id_col, time_col, stream=False)
 
@@ -534,7 +545,7 @@ class _Job:
                         finished.add(carry_id)
                     fresh = run_ids[1:] if cont else run_ids
                     if len(set(fresh)) != len(fresh) or any(v in finished for v in fresh):
-                        raise _NotStreamable(f"the rows are not grouped by {id_col!r}")
+                        raise _NotGrouped(f"the rows are not grouped by {id_col!r}")
                     if t is not None and nrow > 1 and np.any((np.diff(t) < 0) & ~change):
                         raise _NotStreamable(f"the times of a track go back in the file (column {time_col!r})")
                     if cont and t is not None and t[0] < carry_t:
@@ -588,6 +599,74 @@ class _Job:
         if self.progress:
             print(f"abkit run: {totals['tracks']} tracks, {totals['rows']} rows, {totals['dropped']} dropped as "
                   f"duplicates, {totals['restarts']} restarts after gaps", file=sys.stderr)
+
+    def _feed(self, reader: "_TableReader", id_col: str, time_col: str, not_grouped: Exception) -> None:
+        """A long table ordered by time (tracks interleaved): streamed chunk
+        by chunk through one :class:`abkit.FeedTracker` per column (per-id
+        state tables), the same estimates as grouping the whole file.
+        Raises _NotStreamable when a time goes back in the file."""
+        import pyarrow as pa
+
+        from .feed import FeedTracker
+
+        out_path = self._tmp()
+        writer = None
+        try:
+            prog = Progress(reader.total, reader.unit, self.progress)
+            trackers: List[FeedTracker] = []
+            names: List[List[str]] = []
+            t_last = -math.inf
+            n_rows = 0
+            for row0, tab in reader:
+                cols = reader.columns or []
+                if not names:
+                    names = self._out_names(cols, tab.column_names)
+                    trackers = [FeedTracker(self.filt, init=self.init, **self.kw) for _ in cols]
+                idcol = tab.column(id_col)
+                if idcol.null_count:
+                    i = int(np.flatnonzero(idcol.is_null().to_numpy(zero_copy_only=False))[0])
+                    raise DataError(f"{self.src}, row {row0 + i + 1}, column {id_col!r}: missing track id")
+                ids = idcol.to_numpy(zero_copy_only=False)
+                t = reader.values(tab, time_col, row0, time=True)
+                if t.size and (t[0] < t_last or bool(np.any(t[1:] < t[:-1]))):
+                    raise _NotStreamable(f"{not_grouped}, nor ordered by {time_col!r}")
+                out = tab
+                for tr, c, row in zip(trackers, cols, names):
+                    try:
+                        r = tr.update(ids, t, reader.values(tab, c, row0))
+                    except ValueError as exc:
+                        m = re.match(r"row (\d+) \(id .*?\): ", str(exc))
+                        if m is None:
+                            raise DataError(f"{self.src}: {exc}") from None
+                        k = int(m.group(1))
+                        rest = str(exc)[m.end():]
+                        col = c if rest.startswith("z ") else time_col
+                        raise DataError(f"{self.src}, row {row0 + k + 1} ({id_col} {ids[k]!r}), column {col!r}: {rest}") from None
+                    for j, nm in enumerate(row[:-1]):
+                        out = out.append_column(nm, pa.array(r.states[j]))
+                    assert r.residuals is not None
+                    out = out.append_column(row[-1], pa.array(r.residuals))
+                if t.size:
+                    t_last = float(t[-1])
+                n_rows += len(ids)
+                writer = writer or _TableWriter(out_path, self.fmt, out.schema)
+                writer.write(out)
+                prog.update(reader.progress())
+            if writer is None:
+                writer = _TableWriter(out_path, self.fmt, reader.empty_schema(self._out_names(reader.columns or [], [])))
+            writer.close()
+            prog.close()
+            os.replace(out_path, self.dst)
+        except BaseException:
+            if writer is not None:
+                writer.close()
+            _remove(out_path)
+            raise
+        if self.progress:
+            tr0 = trackers[0] if trackers else None
+            print(f"abkit run: {0 if tr0 is None else tr0.n_tracks} tracks, {n_rows} rows (a feed ordered by time), "
+                  f"{0 if tr0 is None else int(tr0.n_dropped.sum())} dropped as duplicates, "
+                  f"{0 if tr0 is None else int(tr0.n_restarts.sum())} restarts after gaps", file=sys.stderr)
 
     def _out_names(self, columns: Sequence[str], existing: Sequence[str]) -> List[List[str]]:
         names = [[f"{c}_{s}" for s in self.suffixes] + [f"{c}_res"] for c in columns]
