@@ -160,7 +160,7 @@ def _one_step_gains(f, dts):
     return f.run(z, t=t, init="first").states[:, :, 1]
 
 
-@pytest.mark.parametrize("noise", [(0.0, 0.0, 0.1, 1.0), (0.3, 0.2, 0.1, 1.0), (1.0, 1e-3, 1e-6, 1.0), (1e-6, 1e2, 1e4, 2.0)])
+@pytest.mark.parametrize("noise", [(0.0, 0.0, 0.1, 1.0), (0.3, 0.2, 0.1, 1.0), (1.0, 1e-3, 1e-6, 1.0), (1e-6, 1e2, 1e-4, 2.0)])
 def test_irregular_gains_equal_from_noise(noise):
     """The irregular kernel's per-dt design is ``abg::from_noise`` at h = dt
     (the same Rust function): alpha and beta/dt bit-identical; gamma/dt^2
@@ -179,3 +179,18 @@ def test_irregular_gains_equal_from_noise(noise):
     for i in range(0, dts.size, 8):
         r = ref_gains(*noise, float(dts[i]))
         np.testing.assert_allclose([d.alpha[i], d.beta[i], d.gamma[i]], r[:3], rtol=RTOL)
+
+
+def test_alpha_rounding_to_one_is_a_value_error():
+    """Process noise ~1e32 times the measurement noise: 1 - alpha ~ 4e-32
+    is not representable next to 1, so there is no float64 gain to
+    return (as for from_tracking_index); the design and the irregular
+    kernel at such a dt raise ValueError naming the parameter."""
+    with pytest.raises(ValueError, match="sigma_m"):
+        abg.from_noise(1e-12, 1e-12, 1e16, 1.0, 1e4)
+    with pytest.raises(ValueError, match="lam"):
+        abg.from_noise(0.0, 0.0, 1e16, 1.0, 1e4)
+    f = AlphaBetaGammaFilter.from_noise(1e-6, 1e2, 1e4, 2.0, T=1.0)
+    with pytest.raises(ValueError, match="sigma_m"):
+        f.run(np.array([0.0, 1.0]), t=np.array([0.0, 1e5]), init="first")
+
