@@ -71,7 +71,8 @@ proptest::proptest! {
 // at the first three, where 1 - alpha ~ 2e-7.
 #[test]
 fn from_noise_worst_cases_match_50_digit_reference() {
-    let cases: [((f64, f64, f64, f64, f64), [f64; 3]); 8] = [
+    type Case = ((f64, f64, f64, f64, f64), [f64; 3]);
+    let cases: [Case; 8] = [
         (
             (1.0, 0.001, 1e-06, 1.0, 2000.0),
             [0.9999997651268856, 1.9692727962304166, 1.938548382070774],
