@@ -160,12 +160,186 @@ fn newton_bracketed(
     x
 }
 
+/// Stable pole `p` (`|p| < 1`) and `u = 1 - p` of one root `y` of the
+/// spectral polynomial: `(1 - p)^2 + p y = 0`, i.e. `p^2 - (2 - y) p + 1 = 0`
+/// (reciprocal roots) and `u^2 - y u + y = 0`. Both are taken from the
+/// larger-magnitude root of their quadratic and the product of the roots,
+/// so neither cancels; `w = y - 4` (given for roots near 4, poles near -1)
+/// replaces the cancelling `y - 4`.
+fn stable_pole(
+    y: nalgebra::Complex<f64>,
+    w: Option<f64>,
+) -> (nalgebra::Complex<f64>, nalgebra::Complex<f64>) {
+    use nalgebra::Complex;
+    let (y, d) = match w {
+        Some(w) => (
+            Complex::new(4.0 + w, 0.0),
+            Complex::new(((4.0 + w) * w).sqrt(), 0.0),
+        ),
+        None => (y, (y * (y - 4.0)).sqrt()),
+    };
+    let b = Complex::new(2.0, 0.0) - y;
+    let big = if (b + d).norm() >= (b - d).norm() {
+        b + d
+    } else {
+        b - d
+    };
+    let p = Complex::new(2.0, 0.0) / big;
+    let ub = if (y + d).norm() >= (y - d).norm() {
+        y + d
+    } else {
+        y - d
+    };
+    let (ua, uc) = (ub * 0.5, y * 2.0 / ub);
+    let one = Complex::new(1.0, 0.0);
+    let u = if (one - ua - p).norm() <= (one - uc - p).norm() {
+        ua
+    } else {
+        uc
+    };
+    (p, u)
+}
+
+/// Limiting gains `[alpha, beta, gamma, 1 - alpha]` (h = 1 units,
+/// `Q = diag(qp, qv, qa)`, `R = 1`) in closed form by spectral factorisation, accurate to a
+/// few ulps over the whole domain (`None` outside the range where the
+/// polynomial is evaluated without over/underflow; the caller then uses the
+/// Riccati solver).
+///
+/// The measurement's third difference `(z - 1)^3 z_k` has the spectrum
+/// `S(y) = y^3 + qp y^2 + (qv - qa/4) y + qa` in `y = |z - 1|^2` (`|z + 1|^2
+/// = 4 - y`), and equals `B(z) e_k` with `B` the monic characteristic
+/// polynomial of the closed loop `(I - w H) Phi`, `sigma_e^2 B(z) B(1/z) =
+/// S`. Each root `y_i` of `S` gives one pole `p_i` by `(1 - p)^2 + p y = 0`,
+/// `|p| < 1`. With `u_i = 1 - p_i` (roots of `p(1 + u)`, see `analyze`):
+/// `gamma = u1 u2 u3`, `beta = e2(u) - 3 gamma / 2`,
+/// `alpha = e1(u) - e2(u) + e3(u)` and `1 - alpha = p1 p2 p3` (the form
+/// without cancellation is used on each side of 1/2). All terms of the
+/// symmetric functions are positive (`Re u > 0`), so nothing cancels: the
+/// Riccati/Corollary formulation instead solves for `alpha` near 1 and
+/// divides by the cancelling `1 - alpha` (see docs/abg.md, "Accuracy").
+pub fn spectral_gains(qp: f64, qv: f64, qa: f64) -> Option<[f64; 4]> {
+    use nalgebra::Complex;
+    let (c2, c1, c0) = (qp, qv - 0.25 * qa, qa);
+    let s = |y: f64| ((y + c2) * y + c1) * y + c0;
+    let ds = |y: f64| (3.0 * y + 2.0 * c2) * y + c1;
+    // Fujiwara's bound on the roots' moduli.
+    let bound = 2.0 * c2.max(c1.abs().sqrt()).max((0.5 * c0).cbrt());
+    if !(bound.is_finite() && (1e-90..=1e90).contains(&bound)) {
+        return None;
+    }
+    // A negative real root exists (S(0) = qa > 0, S(-inf) < 0): safeguarded Newton.
+    let (mut lo, mut hi, mut x) = (-bound, 0.0_f64, -bound);
+    for _ in 0..400 {
+        let fx = s(x);
+        if fx == 0.0 {
+            break;
+        }
+        if fx < 0.0 {
+            lo = x;
+        } else {
+            hi = x;
+        }
+        let mut xn = x - fx / ds(x);
+        if !(xn > lo && xn < hi) {
+            xn = 0.5 * (lo + hi);
+        }
+        let done = (xn - x).abs() <= 2.0 * f64::EPSILON * x.abs();
+        x = xn;
+        if done {
+            break;
+        }
+    }
+    let y0 = x;
+    if !(y0 < 0.0 && s(y0).is_finite()) {
+        return None;
+    }
+    // Deflate: S = (y - y0)(y^2 + d1 y + d0); d0 = -qa / y0 exactly, d1 by
+    // whichever of the two Vieta forms has the smaller rounding error.
+    let d0 = -c0 / y0;
+    let e_sum = c2.abs() + y0.abs();
+    let e_lin = (d0.abs() + qv + 0.25 * qa) / y0.abs();
+    let d1 = if e_sum <= e_lin {
+        c2 + y0
+    } else {
+        (d0 - c1) / y0
+    };
+    let disc = Complex::new(d1 * d1 - 4.0 * d0, 0.0).sqrt();
+    let t = if d1 >= 0.0 {
+        (Complex::new(d1, 0.0) + disc) * -0.5
+    } else {
+        (Complex::new(d1, 0.0) - disc) * -0.5
+    };
+    if t.norm() == 0.0 || !t.re.is_finite() || !t.im.is_finite() {
+        return None;
+    }
+    let roots = [Complex::new(y0, 0.0), t, Complex::new(d0, 0.0) / t];
+    let mut p = [Complex::new(0.0, 0.0); 3];
+    let mut u = [Complex::new(0.0, 0.0); 3];
+    for (i, y) in roots.into_iter().enumerate() {
+        let mut w = None;
+        // (A real root is never in [0, 4]: S > 0 there; one computed just
+        // below 4 is a root just above it, rounded.)
+        if y.im == 0.0 && y.re > 3.0 && y.re < 8.0 {
+            // Root near 4 (pole near -1): solve S(4 + w) = 0 for w directly.
+            let (t2, t1, t0) = (
+                12.0 + qp,
+                48.0 + 8.0 * qp + qv - 0.25 * qa,
+                64.0 + 16.0 * qp + 4.0 * qv,
+            );
+            let mut wv = (y.re - 4.0).max(0.0);
+            for _ in 0..8 {
+                let f = ((wv + t2) * wv + t1) * wv + t0;
+                let df = (3.0 * wv + 2.0 * t2) * wv + t1;
+                let wn = wv - f / df;
+                if !(wn > 0.0 && wn.is_finite()) {
+                    break;
+                }
+                let done = (wn - wv).abs() <= f64::EPSILON * wv;
+                wv = wn;
+                if done {
+                    break;
+                }
+            }
+            w = Some(wv);
+        }
+        let (pi, ui) = stable_pole(y, w);
+        p[i] = pi;
+        u[i] = ui;
+    }
+    let e1 = u[0] + u[1] + u[2];
+    let e2 = u[0] * u[1] + u[0] * u[2] + u[1] * u[2];
+    let e3 = u[0] * u[1] * u[2];
+    let om = (p[0] * p[1] * p[2]).re;
+    let gamma = e3.re;
+    let beta = (e2 - e3 * 1.5).re;
+    let alpha = if om > 0.5 {
+        (e1 - e2 + e3).re
+    } else {
+        1.0 - om
+    };
+    let ok = p.iter().all(|z| z.norm() < 1.0)
+        && om > 0.0
+        && alpha > 0.0
+        && alpha <= 1.0
+        && beta > 0.0
+        && gamma > 0.0
+        && gamma.is_finite()
+        && beta.is_finite();
+    ok.then_some([alpha, beta, gamma, om])
+}
+
 /// Limiting Kalman gains `[alpha, beta, gamma]` (paper convention) for
 /// `Q = diag(sigma_p, sigma_v, sigma_a)`, `R = sigma_m` (variances), period `h`.
 ///
 /// `sigma_a = 0` has no limiting gain (Lemma 2): [`Error::NoSolution`].
 /// Uses the closed form of [`from_tracking_index`] when
-/// `sigma_p = sigma_v = 0`, the Riccati solver otherwise.
+/// `sigma_p = sigma_v = 0`, the spectral closed form [`spectral_gains`]
+/// otherwise (accurate to a few ulps, `tests/test_abg_accuracy.py`), and the
+/// Riccati solver only where that form's polynomial would over/underflow
+/// (roots beyond `1e+-90`). A process noise so much larger than the
+/// measurement noise that `alpha` rounds to 1 is an [`Error::Domain`] on
+/// `sigma_m` (as [`from_tracking_index`] for `lam`).
 pub fn from_noise(sp: f64, sv: f64, sa: f64, sm: f64, h: f64) -> Result<[f64; 3]> {
     nonneg("sigma_p", sp)?;
     nonneg("sigma_v", sv)?;
@@ -197,6 +371,21 @@ pub fn from_noise(sp: f64, sv: f64, sa: f64, sm: f64, h: f64) -> Result<[f64; 3]
     if qp == 0.0 && qv == 0.0 {
         return from_tracking_index(qa.sqrt());
     }
+    if let Some([alpha, beta, gamma, om]) = spectral_gains(qp, qv, qa) {
+        if !(alpha < 1.0 && om > 0.0) {
+            return Err(Error::domain(
+                "sigma_m",
+                format!(
+                    "large enough that 1 - alpha is representable (the process noise over the \
+                     measurement noise is so large that alpha rounds to 1; 1 - alpha = {om:e})"
+                ),
+                sm,
+            ));
+        }
+        return Ok([alpha, beta, gamma]);
+    }
+    // Outside the range of the closed form (roots beyond 1e+-90): the
+    // checked Riccati solver, Newton-polished.
     // Gains are invariant under a common scaling of Q and R.
     let scale = qp.max(qv).max(qa).max(1.0);
     let f = DMatrix::from_row_slice(3, 3, phi1().as_slice()).transpose();

@@ -63,3 +63,90 @@ proptest::proptest! {
         }
     }
 }
+
+// Worst cases of the accuracy sweep (tests/test_abg_accuracy.py): the
+// limiting gains against the filter DARE solved by doubling in 50-digit
+// mpmath, physical units `(sigma_p, sigma_v, sigma_a, sigma_m, h)`. The
+// Riccati solver + Newton polish used before was off by up to 5e-6 (beta)
+// at the first three, where 1 - alpha ~ 2e-7.
+#[test]
+fn from_noise_worst_cases_match_50_digit_reference() {
+    type Case = ((f64, f64, f64, f64, f64), [f64; 3]);
+    let cases: [Case; 8] = [
+        (
+            (1.0, 0.001, 1e-06, 1.0, 2000.0),
+            [0.9999997651268856, 1.9692727962304166, 1.938548382070774],
+        ),
+        (
+            (0.0, 0.001, 1e-06, 1.0, 2000.0),
+            [0.9999997651198128, 1.9692876250253166, 1.938577569998026],
+        ),
+        (
+            (1.0, 0.0, 1e-06, 1.0, 2000.0),
+            [0.9999997511133045, 1.9977694142006845, 1.9955418128216806],
+        ),
+        (
+            (0.0001, 1.0, 100000000.0, 1.0, 1.0),
+            [0.9999999600658667, 1.9991761282671996, 1.99835265575213],
+        ),
+        (
+            (1e12, 0.0001, 1e16, 1.0, 1.0),
+            [0.9999999999999997, 1.9615242270662454, 1.9237886466839165],
+        ),
+        (
+            (1e-12, 10000.0, 1e-16, 1.0, 1.0),
+            [
+                0.9999000599470653,
+                0.9997002198392352,
+                9.997002197392452e-11,
+            ],
+        ),
+        (
+            (10000.0, 1e12, 0.0001, 1.0, 1.0),
+            [0.999999999999, 0.9999999949970002, 9.999999849970002e-09],
+        ),
+        (
+            (3.0, 1e12, 1e12, 2.0, 0.001),
+            [
+                0.9999980020344641,
+                1.0004907528073776,
+                0.0009994912545579653,
+            ],
+        ),
+    ];
+    for ((sp, sv, sa, sm, h), r) in cases {
+        let g = from_noise(sp, sv, sa, sm, h).unwrap();
+        for i in 0..3 {
+            let rel = (g[i] - r[i]).abs() / r[i];
+            assert!(
+                rel <= 1e-14,
+                "{:?}: gain {i} = {} vs {} (rel {rel:e})",
+                (sp, sv, sa, sm, h),
+                g[i],
+                r[i]
+            );
+        }
+    }
+    // alpha would round to 1: a domain error on sigma_m, not a wrong gain.
+    assert!(matches!(
+        from_noise(1e-12, 1e-12, 1e16, 1.0, 1e4),
+        Err(Error::Domain { .. })
+    ));
+}
+
+#[test]
+fn spectral_gains_agree_with_the_tracking_index_closed_form() {
+    // qp = qv = 0 is the closed form of from_tracking_index (a different
+    // derivation: the cubic in u); they agree to a few ulps.
+    for lam in [1e-8, 1e-3, 0.1, 1.0, 10.0, 1e4, 1e7] {
+        let cf = from_tracking_index(lam).unwrap();
+        let sg = spectral_gains(0.0, 0.0, lam * lam).unwrap();
+        for i in 0..3 {
+            assert!(
+                (cf[i] - sg[i]).abs() <= 8.0 * f64::EPSILON * cf[i],
+                "{lam} {i}: {cf:?} {sg:?}"
+            );
+        }
+        assert!((sg[3] - (1.0 - cf[0])).abs() <= 4.0 * f64::EPSILON);
+    }
+}
