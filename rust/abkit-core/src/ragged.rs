@@ -806,8 +806,106 @@ fn run_block<
     Ok(())
 }
 
-/// Lanes of the interleaved alpha-beta driver.
+/// Lanes of the interleaved (scalar) alpha-beta driver.
 pub const AB_TRACK_LANES: usize = 4;
+
+/// Most lanes of the driver (the vector lanes of [`crate::ragged_simd`]).
+const MAX_TRACK_LANES: usize = 8;
+
+/// Lanes of the vector kernel for this call (0: the scalar lanes run):
+/// alpha-beta laws it knows, timestamps, stride-1 measurements and
+/// timestamps, `f32`/`f64` samples, FMA arithmetic, a CPU with the vector
+/// units (and `ABKIT_DISABLE_SIMD` unset).
+fn vector_width<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const FMA: bool>(
+    law: &L,
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let Some(ts) = t else { return 0 };
+        if !(FMA
+            && N == 2
+            && M == 1
+            && z.s_sample == 1
+            && ts.s_sample == 1
+            && law.ab_law().is_some()
+            && crate::ragged_simd::handles::<T>())
+        {
+            return 0;
+        }
+        crate::ragged_simd::width().min(MAX_TRACK_LANES)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = (law, z, t);
+        0
+    }
+}
+
+/// Up to `steps` steps of every lane in the vector kernel (whole blocks of
+/// plain steps; see [`crate::ragged_simd::run`]); returns the steps done.
+#[cfg(target_arch = "x86_64")]
+fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
+    lanes: &mut [Lane<'_, T, L, N>],
+    xv: &mut [(f64, f64); MAX_TRACK_LANES],
+    z: &Samples<'_, T>,
+    ts: &Samples<'_, f64>,
+    steps: usize,
+    max_gap: f64,
+) -> usize {
+    use crate::ragged_simd::{run, VLane};
+    let mut vl: Vec<VLane<'_, T>> = Vec::with_capacity(lanes.len());
+    for (l, &(x, v)) in lanes.iter_mut().zip(xv.iter()) {
+        let k = l.k;
+        let (Ok(zb), Ok(tb)) = (usize::try_from(l.zb), usize::try_from(l.tb)) else {
+            return 0;
+        };
+        let Some(law) = l.law.ab_law() else { return 0 };
+        let (Some(zs), Some(tt)) = (
+            z.data.get(zb + k..zb + k + steps),
+            ts.data.get(tb + k..tb + k + steps),
+        ) else {
+            return 0;
+        };
+        let (s0, s1) = l.out.states.split_at_mut(1);
+        let (Some(xs), Some(vs)) = (
+            s0.first_mut().and_then(|s| s.get_mut(k..k + steps)),
+            s1.first_mut().and_then(|s| s.get_mut(k..k + steps)),
+        ) else {
+            return 0;
+        };
+        let rs = match l.out.resid.as_deref_mut() {
+            Some(r) => match r.get_mut(k..k + steps) {
+                Some(r) => Some(r),
+                None => return 0,
+            },
+            None => None,
+        };
+        vl.push(VLane {
+            z: zs,
+            t: tt,
+            xs,
+            vs,
+            rs,
+            x,
+            v,
+            t_last: l.t_last,
+            law,
+        });
+    }
+    let done = run(&mut vl, steps, max_gap);
+    let res: Vec<(f64, f64, f64)> = vl.iter().map(|q| (q.x, q.v, q.t_last)).collect();
+    drop(vl);
+    if done > 0 {
+        for ((l, xv), (x, v, tl)) in lanes.iter_mut().zip(xv.iter_mut()).zip(res) {
+            l.k += done;
+            l.t_last = tl;
+            *xv = (x, v);
+        }
+    }
+    done
+}
 
 /// A running alpha-beta track in a lane of [`run_block_lanes`].
 struct Lane<'a, T, L, const N: usize> {
@@ -906,7 +1004,11 @@ fn run_block_lanes<
     let n_block = states.len();
     let mut rest: [&mut [T]; N] = comps.each_mut().map(std::mem::take);
     let mut rest_r: Option<&mut [T]> = resid.as_deref_mut();
-    let mut lanes: Vec<Lane<'_, T, L, N>> = Vec::with_capacity(AB_TRACK_LANES);
+    // Vector lanes (0: none): alpha-beta laws they know, with timestamps,
+    // stride-1 samples and FMA (their arithmetic is the FMA form).
+    let vw = vector_width::<T, L, N, M, FMA>(&filt.laws[0], z, t);
+    let n_lanes = if vw > 0 { vw } else { AB_TRACK_LANES };
+    let mut lanes: Vec<Lane<'_, T, L, N>> = Vec::with_capacity(n_lanes);
     let mut next_j = 0;
     // Run the general code on track j from sample k0 until it is running
     // again (Some(lane state)) or done (None, post-processed).
@@ -974,7 +1076,7 @@ fn run_block_lanes<
     loop {
         // Fill the lanes with the next tracks (in order: their output
         // slices are peeled off the front of the block's buffers).
-        while lanes.len() < AB_TRACK_LANES && next_j < n_block {
+        while lanes.len() < n_lanes && next_j < n_block {
             let j = next_j;
             next_j += 1;
             let i = i0 + j;
@@ -1022,18 +1124,40 @@ fn run_block_lanes<
         if lanes.is_empty() {
             break;
         }
-        if lanes.len() == AB_TRACK_LANES {
+        if lanes.len() == n_lanes {
             let steps = lanes.iter().map(|l| l.n - l.k).min().unwrap_or(0);
             // The chains' state in locals (registers), not in the lanes.
-            let mut xv: [(f64, f64); AB_TRACK_LANES] =
-                std::array::from_fn(|q| (lanes[q].x, lanes[q].v));
-            'outer: for _ in 0..steps {
-                let mut ok = true;
-                for (l, xv) in lanes.iter_mut().zip(xv.iter_mut()) {
-                    ok &= lane_step::<T, L, N, M, FMA>(l, xv, z, t, max_gap, opts.t_nominal);
+            let mut xv: [(f64, f64); MAX_TRACK_LANES] =
+                std::array::from_fn(|q| lanes.get(q).map_or((0.0, 0.0), |l| (l.x, l.v)));
+            let mut done = 0;
+            'outer: while done < steps {
+                if vw > 0 {
+                    // Whole blocks of plain steps in the vector lanes.
+                    #[cfg(target_arch = "x86_64")]
+                    if let Some(ts) = t {
+                        done += vector_steps(&mut lanes, &mut xv, z, ts, steps - done, max_gap);
+                    }
+                    if done >= steps {
+                        break;
+                    }
                 }
-                if !ok {
-                    break 'outer;
+                // Scalar steps: the rest (no vector lanes), or up to one
+                // block (the one the vector lanes left: it holds a step
+                // that stops a lane, or is the tail).
+                let lim = if vw > 0 {
+                    (steps - done).min(vw)
+                } else {
+                    steps - done
+                };
+                for _ in 0..lim {
+                    let mut ok = true;
+                    for (l, xv) in lanes.iter_mut().zip(xv.iter_mut()) {
+                        ok &= lane_step::<T, L, N, M, FMA>(l, xv, z, t, max_gap, opts.t_nominal);
+                    }
+                    if !ok {
+                        break 'outer;
+                    }
+                    done += 1;
                 }
             }
             for (l, xv) in lanes.iter_mut().zip(xv.iter()) {
