@@ -392,13 +392,18 @@ struct Block<'a, T, const N: usize> {
 }
 
 /// Split `[0, n_tracks)` into blocks of consecutive tracks.
-fn plan_blocks(offsets: &[usize]) -> Vec<(usize, usize)> {
+/// Blocks hold at least `min_tracks` tracks (when there are that many) so
+/// that the vector lanes fill.
+fn plan_blocks(offsets: &[usize], min_tracks: usize) -> Vec<(usize, usize)> {
     let n_tracks = offsets.len() - 1;
     let mut blocks = Vec::new();
     let mut i0 = 0;
     while i0 < n_tracks {
         let mut i1 = i0 + 1;
-        while i1 < n_tracks && i1 - i0 < BLOCK_TRACKS && offsets[i1] - offsets[i0] < BLOCK_SAMPLES {
+        while i1 < n_tracks
+            && i1 - i0 < BLOCK_TRACKS
+            && (offsets[i1] - offsets[i0] < BLOCK_SAMPLES || i1 - i0 < min_tracks)
+        {
             i1 += 1;
         }
         blocks.push((i0, i1));
@@ -488,7 +493,16 @@ pub fn filter_tracks<
         }
     }
     // Split the outputs into per-block slices.
-    let plan = plan_blocks(&off);
+    // Blocks of at least two tracks per vector lane (the lanes fill).
+    #[cfg(target_arch = "x86_64")]
+    let min_tracks = if t.is_some() && N == 2 && M == 1 {
+        2 * crate::ragged_simd::width()
+    } else {
+        1
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let min_tracks = 1;
+    let plan = plan_blocks(&off, min_tracks);
     let mut rows: Vec<&mut [T]> = if n_total == 0 {
         (0..N).map(|_| -> &mut [T] { &mut [] }).collect()
     } else {
@@ -843,8 +857,34 @@ fn vector_width<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, co
     }
 }
 
+/// Samples per call of the vector kernel while idle lanes walk [`Pad`].
+#[cfg(target_arch = "x86_64")]
+const PAD_STEPS: usize = 256;
+
+/// Scratch tracks of the idle vector lanes: measurements 0 at times
+/// `h, 2h, ...` (`h` a power of 2 within `max_gap`, so every step is a
+/// plain one), outputs discarded.
+#[cfg(target_arch = "x86_64")]
+struct Pad<T> {
+    z: Vec<T>,
+    t: Vec<f64>,
+    out: Vec<T>,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<T> Default for Pad<T> {
+    fn default() -> Self {
+        Pad {
+            z: Vec::new(),
+            t: Vec::new(),
+            out: Vec::new(),
+        }
+    }
+}
+
 /// Up to `steps` steps of every lane in the vector kernel (whole blocks of
-/// plain steps; see [`crate::ragged_simd::run`]); returns the steps done.
+/// plain steps; see [`crate::ragged_simd::run`]), with scratch tracks in
+/// the lanes no track occupies; returns the steps done.
 #[cfg(target_arch = "x86_64")]
 fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     lanes: &mut [Lane<'_, T, L, N>],
@@ -853,55 +893,106 @@ fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     ts: &Samples<'_, f64>,
     steps: usize,
     max_gap: f64,
+    pad: &mut Pad<T>,
 ) -> usize {
-    use crate::ragged_simd::{run, VLane};
-    let mut vl: Vec<VLane<'_, T>> = Vec::with_capacity(lanes.len());
-    for (l, &(x, v)) in lanes.iter_mut().zip(xv.iter()) {
-        let k = l.k;
-        let (Ok(zb), Ok(tb)) = (usize::try_from(l.zb), usize::try_from(l.tb)) else {
-            return 0;
-        };
-        let Some(law) = l.law.ab_law() else { return 0 };
-        let (Some(zs), Some(tt)) = (
-            z.data.get(zb + k..zb + k + steps),
-            ts.data.get(tb + k..tb + k + steps),
-        ) else {
-            return 0;
-        };
-        let (s0, s1) = l.out.states.split_at_mut(1);
-        let (Some(xs), Some(vs)) = (
-            s0.first_mut().and_then(|s| s.get_mut(k..k + steps)),
-            s1.first_mut().and_then(|s| s.get_mut(k..k + steps)),
-        ) else {
-            return 0;
-        };
-        let rs = match l.out.resid.as_deref_mut() {
-            Some(r) => match r.get_mut(k..k + steps) {
-                Some(r) => Some(r),
-                None => return 0,
-            },
-            None => None,
-        };
-        vl.push(VLane {
-            z: zs,
-            t: tt,
-            xs,
-            vs,
-            rs,
-            x,
-            v,
-            t_last: l.t_last,
-            law,
-        });
+    use crate::ragged_simd::{run, width, VLane};
+    let w = width();
+    if lanes.is_empty() || lanes.len() > w {
+        return 0;
     }
-    let done = run(&mut vl, steps, max_gap);
-    let res: Vec<(f64, f64, f64)> = vl.iter().map(|q| (q.x, q.v, q.t_last)).collect();
-    drop(vl);
-    if done > 0 {
-        for ((l, xv), (x, v, tl)) in lanes.iter_mut().zip(xv.iter_mut()).zip(res) {
-            l.k += done;
-            l.t_last = tl;
-            *xv = (x, v);
+    let n_pad = w - lanes.len();
+    let Some(law0) = lanes[0].law.ab_law() else {
+        return 0;
+    };
+    if n_pad > 0 && pad.z.is_empty() {
+        // h: the largest power of 2 <= min(1, max_gap) (exact times k h).
+        let mut h = 1.0f64;
+        while h > max_gap && h > f64::MIN_POSITIVE {
+            h *= 0.5;
+        }
+        pad.z = vec![T::from_f64(0.0); PAD_STEPS];
+        pad.t = (1..=PAD_STEPS).map(|k| k as f64 * h).collect();
+        pad.out = vec![T::from_f64(0.0); 3 * (MAX_TRACK_LANES - 1) * PAD_STEPS];
+    }
+    let resid = lanes[0].out.resid.is_some();
+    let mut done = 0;
+    while done < steps {
+        let chunk = if n_pad > 0 {
+            (steps - done).min(PAD_STEPS)
+        } else {
+            steps - done
+        };
+        let mut vl: Vec<VLane<'_, T>> = Vec::with_capacity(w);
+        for (l, &(x, v)) in lanes.iter_mut().zip(xv.iter()) {
+            let k = l.k;
+            let (Ok(zb), Ok(tb)) = (usize::try_from(l.zb), usize::try_from(l.tb)) else {
+                return done;
+            };
+            let Some(law) = l.law.ab_law() else {
+                return done;
+            };
+            let (Some(zs), Some(tt)) = (
+                z.data.get(zb + k..zb + k + chunk),
+                ts.data.get(tb + k..tb + k + chunk),
+            ) else {
+                return done;
+            };
+            let (s0, s1) = l.out.states.split_at_mut(1);
+            let (Some(xs), Some(vs)) = (
+                s0.first_mut().and_then(|s| s.get_mut(k..k + chunk)),
+                s1.first_mut().and_then(|s| s.get_mut(k..k + chunk)),
+            ) else {
+                return done;
+            };
+            let rs = match l.out.resid.as_deref_mut() {
+                Some(r) => match r.get_mut(k..k + chunk) {
+                    Some(r) => Some(r),
+                    None => return done,
+                },
+                None => None,
+            };
+            vl.push(VLane {
+                z: zs,
+                t: tt,
+                xs,
+                vs,
+                rs,
+                x,
+                v,
+                t_last: l.t_last,
+                law,
+            });
+        }
+        let mut outs = pad.out.chunks_exact_mut(PAD_STEPS);
+        for _ in 0..n_pad {
+            let (Some(xs), Some(vs), Some(rs)) = (outs.next(), outs.next(), outs.next()) else {
+                return done;
+            };
+            vl.push(VLane {
+                z: &pad.z[..chunk],
+                t: &pad.t[..chunk],
+                xs,
+                vs,
+                rs: if resid { Some(rs) } else { None },
+                x: 0.0,
+                v: 0.0,
+                t_last: 0.0,
+                law: law0,
+            });
+        }
+        let d = run(&mut vl, chunk, max_gap);
+        let res: Vec<(f64, f64, f64)> = vl.iter().map(|q| (q.x, q.v, q.t_last)).collect();
+        drop(vl);
+        if d > 0 {
+            for ((l, xv), (x, v, tl)) in lanes.iter_mut().zip(xv.iter_mut()).zip(res) {
+                l.k += d;
+                l.t_last = tl;
+                *xv = (x, v);
+            }
+        }
+        done += d;
+        if d < chunk {
+            break;
         }
     }
     done
@@ -1009,6 +1100,10 @@ fn run_block_lanes<
     let vw = vector_width::<T, L, N, M, FMA>(&filt.laws[0], z, t);
     let n_lanes = if vw > 0 { vw } else { AB_TRACK_LANES };
     let mut lanes: Vec<Lane<'_, T, L, N>> = Vec::with_capacity(n_lanes);
+    // Scratch tracks for the idle vector lanes (while fewer tracks than
+    // lanes are left in the block).
+    #[cfg(target_arch = "x86_64")]
+    let mut pad = Pad::<T>::default();
     let mut next_j = 0;
     // Run the general code on track j from sample k0 until it is running
     // again (Some(lane state)) or done (None, post-processed).
@@ -1124,7 +1219,7 @@ fn run_block_lanes<
         if lanes.is_empty() {
             break;
         }
-        if lanes.len() == n_lanes {
+        if lanes.len() == n_lanes || vw > 0 {
             let steps = lanes.iter().map(|l| l.n - l.k).min().unwrap_or(0);
             // The chains' state in locals (registers), not in the lanes.
             let mut xv: [(f64, f64); MAX_TRACK_LANES] =
@@ -1135,7 +1230,15 @@ fn run_block_lanes<
                     // Whole blocks of plain steps in the vector lanes.
                     #[cfg(target_arch = "x86_64")]
                     if let Some(ts) = t {
-                        done += vector_steps(&mut lanes, &mut xv, z, ts, steps - done, max_gap);
+                        done += vector_steps(
+                            &mut lanes,
+                            &mut xv,
+                            z,
+                            ts,
+                            steps - done,
+                            max_gap,
+                            &mut pad,
+                        );
                     }
                     if done >= steps {
                         break;
