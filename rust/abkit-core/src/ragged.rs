@@ -42,6 +42,8 @@ use rayon::prelude::*;
 
 /// Target samples per block of tracks.
 pub const BLOCK_SAMPLES: usize = 32_768;
+/// Target samples per block of tracks when the vector lanes run.
+pub const VECTOR_BLOCK_SAMPLES: usize = 262_144;
 /// Largest number of tracks per block.
 pub const BLOCK_TRACKS: usize = 4_096;
 
@@ -392,9 +394,9 @@ struct Block<'a, T, const N: usize> {
 }
 
 /// Split `[0, n_tracks)` into blocks of consecutive tracks.
-/// Blocks hold at least `min_tracks` tracks (when there are that many) so
-/// that the vector lanes fill.
-fn plan_blocks(offsets: &[usize], min_tracks: usize) -> Vec<(usize, usize)> {
+/// Blocks hold about `samples` samples and at least `min_tracks` tracks
+/// (when there are that many) so that the vector lanes fill.
+fn plan_blocks(offsets: &[usize], samples: usize, min_tracks: usize) -> Vec<(usize, usize)> {
     let n_tracks = offsets.len() - 1;
     let mut blocks = Vec::new();
     let mut i0 = 0;
@@ -402,7 +404,7 @@ fn plan_blocks(offsets: &[usize], min_tracks: usize) -> Vec<(usize, usize)> {
         let mut i1 = i0 + 1;
         while i1 < n_tracks
             && i1 - i0 < BLOCK_TRACKS
-            && (offsets[i1] - offsets[i0] < BLOCK_SAMPLES || i1 - i0 < min_tracks)
+            && (offsets[i1] - offsets[i0] < samples || i1 - i0 < min_tracks)
         {
             i1 += 1;
         }
@@ -493,16 +495,22 @@ pub fn filter_tracks<
         }
     }
     // Split the outputs into per-block slices.
-    // Blocks of at least two tracks per vector lane (the lanes fill).
+    // With the vector lanes: blocks of at least two tracks per lane (the
+    // lanes fill), and bigger (the lanes of a block's last tracks run
+    // partly idle).
     #[cfg(target_arch = "x86_64")]
-    let min_tracks = if t.is_some() && N == 2 && M == 1 {
-        2 * crate::ragged_simd::width()
-    } else {
-        1
-    };
+    let vector = t.is_some() && N == 2 && M == 1 && crate::ragged_simd::width() > 0;
     #[cfg(not(target_arch = "x86_64"))]
-    let min_tracks = 1;
-    let plan = plan_blocks(&off, min_tracks);
+    let vector = false;
+    let plan = if vector {
+        #[cfg(target_arch = "x86_64")]
+        let w = crate::ragged_simd::width();
+        #[cfg(not(target_arch = "x86_64"))]
+        let w = 1;
+        plan_blocks(&off, VECTOR_BLOCK_SAMPLES, 2 * w)
+    } else {
+        plan_blocks(&off, BLOCK_SAMPLES, 1)
+    };
     let mut rows: Vec<&mut [T]> = if n_total == 0 {
         (0..N).map(|_| -> &mut [T] { &mut [] }).collect()
     } else {
@@ -981,7 +989,10 @@ fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
             });
         }
         let d = run(&mut vl, chunk, max_gap);
-        let res: Vec<(f64, f64, f64)> = vl.iter().map(|q| (q.x, q.v, q.t_last)).collect();
+        let mut res = [(0.0, 0.0, 0.0); MAX_TRACK_LANES];
+        for (r, q) in res.iter_mut().zip(vl.iter()) {
+            *r = (q.x, q.v, q.t_last);
+        }
         drop(vl);
         if d > 0 {
             for ((l, xv), (x, v, tl)) in lanes.iter_mut().zip(xv.iter_mut()).zip(res) {
