@@ -86,7 +86,6 @@ pub enum AbLaw {
     },
 }
 
-
 /// A constant step model (the regular-sampling filter; `dt` ignored).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Constant<const N: usize, const M: usize>(pub Step<N, M>);

@@ -573,13 +573,20 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             let mut xo = [zero; W];
             let mut vo = [zero; W];
             let mut eo = [zero; W];
+            // The gains of the block's steps first (independent of the
+            // state: the divisions and square roots overlap), then the
+            // updates (the dependency chain).
+            let mut ga = [p0; W];
+            let mut gg = [zero; W];
             for j in 0..W {
-                let d = dt[j];
-                let (a, g) = if DESIGN {
-                    design_gains::<V, W>(p0, d)
+                (ga[j], gg[j]) = if DESIGN {
+                    design_gains::<V, W>(p0, dt[j])
                 } else {
-                    (p0, p1.div(d))
+                    (p0, p1.div(dt[j]))
                 };
+            }
+            for j in 0..W {
+                let (d, a, g) = (dt[j], ga[j], gg[j]);
                 // ab_update::<true>.
                 let zj = zv[j];
                 let xpred = d.fmadd(v, x);

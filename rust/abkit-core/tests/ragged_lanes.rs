@@ -126,7 +126,10 @@ fn check_alone<T: IoFloat, L: GainLaw<2, 1>>(laws: &[L], d: &Data, o: &Options, 
         let m = b - a;
         for k in 0..m {
             for c in 0..2 {
-                let (p, q) = (all.states[c * n + a + k].to_f64(), one.states[c * m + k].to_f64());
+                let (p, q) = (
+                    all.states[c * n + a + k].to_f64(),
+                    one.states[c * m + k].to_f64(),
+                );
                 assert!(same(p, q), "track {i} sample {k} comp {c}: {p} vs {q}");
             }
             if resid {
@@ -255,8 +258,14 @@ fn batch_matches_plain_reference_loop() {
             tl = tk;
             if phase == 2 {
                 let (px, pv) = (out.states[k], out.states[n + k]);
-                assert!((px - x).abs() <= 1e-9 * scale, "track {i} sample {k}: {px} vs {x}");
-                assert!((pv - v).abs() <= 1e-9 * scale, "track {i} sample {k}: {pv} vs {v}");
+                assert!(
+                    (px - x).abs() <= 1e-9 * scale,
+                    "track {i} sample {k}: {px} vs {x}"
+                );
+                assert!(
+                    (pv - v).abs() <= 1e-9 * scale,
+                    "track {i} sample {k}: {pv} vs {v}"
+                );
             }
         }
     }
