@@ -474,6 +474,15 @@ impl Vd<4> for V4 {
     }
 }
 
+/// Prefetch distance in samples.
+const PREFETCH: usize = 64;
+
+#[inline(always)]
+fn prefetch<T>(p: *const T) {
+    // SAFETY: a prefetch is a hint; it never faults, whatever the address.
+    unsafe { _mm_prefetch::<_MM_HINT_T0>(p as *const i8) }
+}
+
 /// `(alpha, beta / dt)` of the design law at `dt` in every slot: the
 /// scalar `AbDesign::ab_gains` (see the module docs).
 #[inline(always)]
@@ -551,6 +560,18 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
         });
         let mut k = 0;
         while k + W <= steps {
+            // Prefetch PREFETCH samples ahead in every stream of every lane
+            // (16 to 20 streams are too many for the hardware prefetchers).
+            // Prefetches never fault, so the addresses may lie past the end.
+            for l in 0..W {
+                prefetch(tp[l].wrapping_add(k + PREFETCH));
+                prefetch(zp[l].wrapping_add(k + PREFETCH));
+                prefetch(xp[l].wrapping_add(k + PREFETCH));
+                prefetch(vp[l].wrapping_add(k + PREFETCH));
+                if RESID {
+                    prefetch(rp[l].wrapping_add(k + PREFETCH));
+                }
+            }
             let mut tv: [V; W] = std::array::from_fn(|l| V::load(tp[l].add(k)));
             V::transpose(&mut tv);
             // dt of every step; the block runs only if all are plain steps:
@@ -573,20 +594,13 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             let mut xo = [zero; W];
             let mut vo = [zero; W];
             let mut eo = [zero; W];
-            // The gains of the block's steps first (independent of the
-            // state: the divisions and square roots overlap), then the
-            // updates (the dependency chain).
-            let mut ga = [p0; W];
-            let mut gg = [zero; W];
             for j in 0..W {
-                (ga[j], gg[j]) = if DESIGN {
-                    design_gains::<V, W>(p0, dt[j])
+                let d = dt[j];
+                let (a, g) = if DESIGN {
+                    design_gains::<V, W>(p0, d)
                 } else {
-                    (p0, p1.div(dt[j]))
+                    (p0, p1.div(d))
                 };
-            }
-            for j in 0..W {
-                let (d, a, g) = (dt[j], ga[j], gg[j]);
                 // ab_update::<true>.
                 let zj = zv[j];
                 let xpred = d.fmadd(v, x);
