@@ -33,6 +33,10 @@
 //! disjoint sub-slices of the outputs, nothing is padded or copied. The
 //! result of a track never depends on the blocking, so results are
 //! bit-identical for any thread count and equal to running each track alone.
+//!
+//! Alpha-beta laws with timestamps run their plain running steps in the
+//! vector lanes of [`crate::ragged_simd`] where the CPU has them (the same
+//! arithmetic per track, bit-identical to the scalar lanes).
 #![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
 
 use crate::filter::{Init, IoFloat, TrackOut, TrackState};
