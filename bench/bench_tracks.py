@@ -8,17 +8,22 @@ Ratios measured in one run, on the same machine, same total samples:
   rectangular kernel), 1,000 x 10,000 samples; also the fixed-gain
   schedule (``AlphaBetaFilter(alpha, beta, T).run(z, t=t)``) and the track
   kernel without timestamps on the same rectangle (``offsets=``).
-  Target: irregular >= 0.5 of fixed-T.
+  Target: irregular >= 0.5 of fixed-T. The same ratio for ragged tracks
+  with timestamps (lengths 10..10,000), both gain schedules, against the
+  rectangular fixed-T kernel on the same number of samples.
 * ragged vs rectangular: 10^7 samples as tracks of mixed lengths 10..10,000
   (log-uniform) in one flat array with ``offsets`` vs the rectangular
   fixed-T kernel on the same number of samples. Target: >= 0.8.
 
-Throughput is samples per second, best of ``--repeat`` round-robin rounds, outputs
+Throughput is samples per second, best of ``--repeat`` round-robin rounds
+(wall time, or CPU time of this process with ``--cpu``: steadier on a
+shared machine, meaningful with ``--threads 1``), outputs
 preallocated (``out=``), float64, threads = rayon's pool (``--threads 1``
 for one thread). Usage::
 
     python bench/bench_tracks.py            # full sizes (~1 min)
     python bench/bench_tracks.py --quick    # 1/10 of the sizes
+    python bench/bench_tracks.py --threads 1 --cpu --repeat 7
 
 Prints a markdown table (the one in docs/benchmarks.md).
 """
@@ -41,7 +46,9 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--threads", type=int, default=None)
+    ap.add_argument("--cpu", action="store_true", help="CPU time (time.process_time) instead of wall time")
     a = ap.parse_args()
+    clock = time.process_time if a.cpu else time.perf_counter
     scale = 10 if a.quick else 1
     rng = np.random.default_rng(0)
     th = a.threads
@@ -84,6 +91,7 @@ def main() -> None:
         "rag": lambda: design.run(zr, offsets=off, out=out_r, threads=th),
         "rect_t": lambda: design.run(zq, t=tq, out=out_q, threads=th),
         "rag_t": lambda: design.run(zr, t=tr, offsets=off, out=out_r, threads=th),
+        "rag_t_fixed": lambda: fixed.run(zr, t=tr, offsets=off, out=out_r, threads=th),
     }
     # Round robin: every case once per round, best per case (load drifts
     # affect all cases alike).
@@ -92,9 +100,9 @@ def main() -> None:
         fn()
     for _ in range(a.repeat):
         for k, fn in cases.items():
-            t0 = time.perf_counter()
+            t0 = clock()
             fn()
-            best_t[k] = min(best_t[k], time.perf_counter() - t0)
+            best_t[k] = min(best_t[k], clock() - t0)
     t_fixed = best_t["fixed"]
     rows: List[Tuple[str, float]] = [
         ("fixed-T kernel, rectangular (run(z))", t_fixed),
@@ -104,7 +112,8 @@ def main() -> None:
     ]
     t_rect, t_rag, t_rect_t, t_rag_t = (best_t[k] for k in ("rect", "rag", "rect_t", "rag_t"))
 
-    print(f"abkit {abkit.__version__}, {platform.machine()}, numpy {np.__version__}, threads={th or 'pool'}, best of {a.repeat}")
+    print(f"abkit {abkit.__version__}, {platform.machine()}, numpy {np.__version__}, threads={th or 'pool'}, "
+          f"best of {a.repeat}, {'CPU' if a.cpu else 'wall'} time")
     print()
     print(f"| Irregular timestamps ({n_tracks:,} x {n_samples:,}) | Msamples/s | vs fixed-T |")
     print("|---|---:|---:|")
@@ -117,6 +126,9 @@ def main() -> None:
     print(f"| ragged, no t (offsets) | {total / t_rag / 1e6:.0f} | {t_rect / t_rag:.2f} |")
     print(f"| rectangular with t | {total / t_rect_t / 1e6:.0f} | 1.00 (t) |")
     print(f"| ragged with t | {total / t_rag_t / 1e6:.0f} | {t_rect_t / t_rag_t:.2f} (vs rectangular with t) |")
+    print(f"| ragged with t, design schedule | {total / t_rag_t / 1e6:.0f} | {t_rect / t_rag_t:.2f} (vs rectangular fixed-T) |")
+    t_rag_tf = best_t["rag_t_fixed"]
+    print(f"| ragged with t, fixed-gain schedule | {total / t_rag_tf / 1e6:.0f} | {t_rect / t_rag_tf:.2f} (vs rectangular fixed-T) |")
 
 
 if __name__ == "__main__":

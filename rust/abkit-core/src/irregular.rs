@@ -59,6 +59,31 @@ pub trait GainLaw<const N: usize, const M: usize>: Clone + Send + Sync {
     fn ab_gains(&mut self, _dt: f64) -> Option<(f64, f64)> {
         None
     }
+
+    /// Alpha-beta laws the vector lanes of the track kernel compute
+    /// themselves (with exactly the arithmetic of [`GainLaw::ab_gains`]).
+    /// `None` for every other law.
+    #[inline(always)]
+    fn ab_law(&self) -> Option<AbLaw> {
+        None
+    }
+}
+
+/// The alpha-beta gain laws the vector lanes know.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AbLaw {
+    /// Fixed gains: `K = [alpha, beta / dt]`.
+    Fixed {
+        /// Position gain.
+        alpha: f64,
+        /// Dimensionless velocity gain.
+        beta: f64,
+    },
+    /// The steady-state Kalman design at every `dt` (`ratio = sigma_w / sigma_v`).
+    Design {
+        /// `sigma_w / sigma_v`.
+        ratio: f64,
+    },
 }
 
 /// A constant step model (the regular-sampling filter; `dt` ignored).
@@ -106,6 +131,14 @@ impl GainLaw<2, 1> for AbFixed {
     fn ab_gains(&mut self, dt: f64) -> Option<(f64, f64)> {
         Some((self.alpha, self.beta / dt))
     }
+
+    #[inline(always)]
+    fn ab_law(&self) -> Option<AbLaw> {
+        Some(AbLaw::Fixed {
+            alpha: self.alpha,
+            beta: self.beta,
+        })
+    }
 }
 
 /// The steady-state Kalman alpha-beta design of the white-acceleration
@@ -144,6 +177,11 @@ impl GainLaw<2, 1> for AbDesign {
     fn ab_gains(&mut self, dt: f64) -> Option<(f64, f64)> {
         let (a, b) = self.gains(dt);
         Some((a, b / dt))
+    }
+
+    #[inline(always)]
+    fn ab_law(&self) -> Option<AbLaw> {
+        Some(AbLaw::Design { ratio: self.ratio })
     }
 }
 

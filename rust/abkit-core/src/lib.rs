@@ -29,6 +29,8 @@
 //!   function of `dt`: per-dt steady-state designs or fixed gains).
 //! - [`ragged`]: the track kernel over ragged batches (Arrow offsets) with
 //!   optional timestamps, gaps and duplicates.
+//! - `ragged_simd` (x86-64): the vector lanes (AVX-512 / AVX2) of the
+//!   track kernel's alpha-beta laws with timestamps.
 
 // No unwrap/expect outside tests: nothing derived from user data may panic.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
@@ -42,6 +44,8 @@ pub mod filter;
 pub mod irregular;
 pub mod kalman;
 pub mod ragged;
+#[cfg(target_arch = "x86_64")]
+pub mod ragged_simd;
 pub mod riccati;
 pub mod singer;
 pub mod singer_closed;

@@ -33,6 +33,10 @@
 //! disjoint sub-slices of the outputs, nothing is padded or copied. The
 //! result of a track never depends on the blocking, so results are
 //! bit-identical for any thread count and equal to running each track alone.
+//!
+//! Alpha-beta laws with timestamps run their plain running steps in the
+//! vector lanes of [`crate::ragged_simd`] where the CPU has them (the same
+//! arithmetic per track, bit-identical to the scalar lanes).
 #![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
 
 use crate::filter::{Init, IoFloat, TrackOut, TrackState};
@@ -42,6 +46,8 @@ use rayon::prelude::*;
 
 /// Target samples per block of tracks.
 pub const BLOCK_SAMPLES: usize = 32_768;
+/// Target samples per block of tracks when the vector lanes run.
+pub const VECTOR_BLOCK_SAMPLES: usize = 262_144;
 /// Largest number of tracks per block.
 pub const BLOCK_TRACKS: usize = 4_096;
 
@@ -392,13 +398,18 @@ struct Block<'a, T, const N: usize> {
 }
 
 /// Split `[0, n_tracks)` into blocks of consecutive tracks.
-fn plan_blocks(offsets: &[usize]) -> Vec<(usize, usize)> {
+/// Blocks hold about `samples` samples and at least `min_tracks` tracks
+/// (when there are that many) so that the vector lanes fill.
+fn plan_blocks(offsets: &[usize], samples: usize, min_tracks: usize) -> Vec<(usize, usize)> {
     let n_tracks = offsets.len() - 1;
     let mut blocks = Vec::new();
     let mut i0 = 0;
     while i0 < n_tracks {
         let mut i1 = i0 + 1;
-        while i1 < n_tracks && i1 - i0 < BLOCK_TRACKS && offsets[i1] - offsets[i0] < BLOCK_SAMPLES {
+        while i1 < n_tracks
+            && i1 - i0 < BLOCK_TRACKS
+            && (offsets[i1] - offsets[i0] < samples || i1 - i0 < min_tracks)
+        {
             i1 += 1;
         }
         blocks.push((i0, i1));
@@ -488,7 +499,22 @@ pub fn filter_tracks<
         }
     }
     // Split the outputs into per-block slices.
-    let plan = plan_blocks(&off);
+    // With the vector lanes: blocks of at least two tracks per lane (the
+    // lanes fill), and bigger (the lanes of a block's last tracks run
+    // partly idle).
+    #[cfg(target_arch = "x86_64")]
+    let vector = t.is_some() && N == 2 && M == 1 && crate::ragged_simd::width() > 0;
+    #[cfg(not(target_arch = "x86_64"))]
+    let vector = false;
+    let plan = if vector {
+        #[cfg(target_arch = "x86_64")]
+        let w = crate::ragged_simd::width();
+        #[cfg(not(target_arch = "x86_64"))]
+        let w = 1;
+        plan_blocks(&off, VECTOR_BLOCK_SAMPLES, 2 * w)
+    } else {
+        plan_blocks(&off, BLOCK_SAMPLES, 1)
+    };
     let mut rows: Vec<&mut [T]> = if n_total == 0 {
         (0..N).map(|_| -> &mut [T] { &mut [] }).collect()
     } else {
@@ -806,8 +832,186 @@ fn run_block<
     Ok(())
 }
 
-/// Lanes of the interleaved alpha-beta driver.
+/// Lanes of the interleaved (scalar) alpha-beta driver.
 pub const AB_TRACK_LANES: usize = 4;
+
+/// Most lanes of the driver (the vector lanes of [`crate::ragged_simd`]).
+const MAX_TRACK_LANES: usize = 8;
+
+/// Lanes of the vector kernel for this call (0: the scalar lanes run):
+/// alpha-beta laws it knows, timestamps, stride-1 measurements and
+/// timestamps, `f32`/`f64` samples, FMA arithmetic, a CPU with the vector
+/// units (and `ABKIT_DISABLE_SIMD` unset).
+fn vector_width<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, const FMA: bool>(
+    law: &L,
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let Some(ts) = t else { return 0 };
+        if !(FMA
+            && N == 2
+            && M == 1
+            && z.s_sample == 1
+            && ts.s_sample == 1
+            && law.ab_law().is_some()
+            && crate::ragged_simd::handles::<T>())
+        {
+            return 0;
+        }
+        crate::ragged_simd::width().min(MAX_TRACK_LANES)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = (law, z, t);
+        0
+    }
+}
+
+/// Samples per call of the vector kernel while idle lanes walk [`Pad`].
+#[cfg(target_arch = "x86_64")]
+const PAD_STEPS: usize = 256;
+
+/// Scratch tracks of the idle vector lanes: measurements 0 at times
+/// `h, 2h, ...` (`h` a power of 2 within `max_gap`, so every step is a
+/// plain one), outputs discarded.
+#[cfg(target_arch = "x86_64")]
+struct Pad<T> {
+    z: Vec<T>,
+    t: Vec<f64>,
+    out: Vec<T>,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<T> Default for Pad<T> {
+    fn default() -> Self {
+        Pad {
+            z: Vec::new(),
+            t: Vec::new(),
+            out: Vec::new(),
+        }
+    }
+}
+
+/// Up to `steps` steps of every lane in the vector kernel (whole blocks of
+/// plain steps; see [`crate::ragged_simd::run`]), with scratch tracks in
+/// the lanes no track occupies; returns the steps done.
+#[cfg(target_arch = "x86_64")]
+fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
+    lanes: &mut [Lane<'_, T, L, N>],
+    xv: &mut [(f64, f64); MAX_TRACK_LANES],
+    z: &Samples<'_, T>,
+    ts: &Samples<'_, f64>,
+    steps: usize,
+    max_gap: f64,
+    pad: &mut Pad<T>,
+) -> usize {
+    use crate::ragged_simd::{run, width, VLane};
+    let w = width();
+    if lanes.is_empty() || lanes.len() > w {
+        return 0;
+    }
+    let n_pad = w - lanes.len();
+    let Some(law0) = lanes[0].law.ab_law() else {
+        return 0;
+    };
+    if n_pad > 0 && pad.z.is_empty() {
+        // h: the largest power of 2 <= min(1, max_gap) (exact times k h).
+        let mut h = 1.0f64;
+        while h > max_gap && h > f64::MIN_POSITIVE {
+            h *= 0.5;
+        }
+        pad.z = vec![T::from_f64(0.0); PAD_STEPS];
+        pad.t = (1..=PAD_STEPS).map(|k| k as f64 * h).collect();
+        pad.out = vec![T::from_f64(0.0); 3 * (MAX_TRACK_LANES - 1) * PAD_STEPS];
+    }
+    let resid = lanes[0].out.resid.is_some();
+    let mut done = 0;
+    while done < steps {
+        let chunk = if n_pad > 0 {
+            (steps - done).min(PAD_STEPS)
+        } else {
+            steps - done
+        };
+        let mut vl: Vec<VLane<'_, T>> = Vec::with_capacity(w);
+        for (l, &(x, v)) in lanes.iter_mut().zip(xv.iter()) {
+            let k = l.k;
+            let (Ok(zb), Ok(tb)) = (usize::try_from(l.zb), usize::try_from(l.tb)) else {
+                return done;
+            };
+            let Some(law) = l.law.ab_law() else {
+                return done;
+            };
+            let (Some(zs), Some(tt)) = (
+                z.data.get(zb + k..zb + k + chunk),
+                ts.data.get(tb + k..tb + k + chunk),
+            ) else {
+                return done;
+            };
+            let (s0, s1) = l.out.states.split_at_mut(1);
+            let (Some(xs), Some(vs)) = (
+                s0.first_mut().and_then(|s| s.get_mut(k..k + chunk)),
+                s1.first_mut().and_then(|s| s.get_mut(k..k + chunk)),
+            ) else {
+                return done;
+            };
+            let rs = match l.out.resid.as_deref_mut() {
+                Some(r) => match r.get_mut(k..k + chunk) {
+                    Some(r) => Some(r),
+                    None => return done,
+                },
+                None => None,
+            };
+            vl.push(VLane {
+                z: zs,
+                t: tt,
+                xs,
+                vs,
+                rs,
+                x,
+                v,
+                t_last: l.t_last,
+                law,
+            });
+        }
+        let mut outs = pad.out.chunks_exact_mut(PAD_STEPS);
+        for _ in 0..n_pad {
+            let (Some(xs), Some(vs), Some(rs)) = (outs.next(), outs.next(), outs.next()) else {
+                return done;
+            };
+            vl.push(VLane {
+                z: &pad.z[..chunk],
+                t: &pad.t[..chunk],
+                xs,
+                vs,
+                rs: if resid { Some(rs) } else { None },
+                x: 0.0,
+                v: 0.0,
+                t_last: 0.0,
+                law: law0,
+            });
+        }
+        let d = run(&mut vl, chunk, max_gap);
+        let mut res = [(0.0, 0.0, 0.0); MAX_TRACK_LANES];
+        for (r, q) in res.iter_mut().zip(vl.iter()) {
+            *r = (q.x, q.v, q.t_last);
+        }
+        drop(vl);
+        if d > 0 {
+            for ((l, xv), (x, v, tl)) in lanes.iter_mut().zip(xv.iter_mut()).zip(res) {
+                l.k += d;
+                l.t_last = tl;
+                *xv = (x, v);
+            }
+        }
+        done += d;
+        if d < chunk {
+            break;
+        }
+    }
+    done
+}
 
 /// A running alpha-beta track in a lane of [`run_block_lanes`].
 struct Lane<'a, T, L, const N: usize> {
@@ -906,7 +1110,15 @@ fn run_block_lanes<
     let n_block = states.len();
     let mut rest: [&mut [T]; N] = comps.each_mut().map(std::mem::take);
     let mut rest_r: Option<&mut [T]> = resid.as_deref_mut();
-    let mut lanes: Vec<Lane<'_, T, L, N>> = Vec::with_capacity(AB_TRACK_LANES);
+    // Vector lanes (0: none): alpha-beta laws they know, with timestamps,
+    // stride-1 samples and FMA (their arithmetic is the FMA form).
+    let vw = vector_width::<T, L, N, M, FMA>(&filt.laws[0], z, t);
+    let n_lanes = if vw > 0 { vw } else { AB_TRACK_LANES };
+    let mut lanes: Vec<Lane<'_, T, L, N>> = Vec::with_capacity(n_lanes);
+    // Scratch tracks for the idle vector lanes (while fewer tracks than
+    // lanes are left in the block).
+    #[cfg(target_arch = "x86_64")]
+    let mut pad = Pad::<T>::default();
     let mut next_j = 0;
     // Run the general code on track j from sample k0 until it is running
     // again (Some(lane state)) or done (None, post-processed).
@@ -974,7 +1186,7 @@ fn run_block_lanes<
     loop {
         // Fill the lanes with the next tracks (in order: their output
         // slices are peeled off the front of the block's buffers).
-        while lanes.len() < AB_TRACK_LANES && next_j < n_block {
+        while lanes.len() < n_lanes && next_j < n_block {
             let j = next_j;
             next_j += 1;
             let i = i0 + j;
@@ -1022,18 +1234,48 @@ fn run_block_lanes<
         if lanes.is_empty() {
             break;
         }
-        if lanes.len() == AB_TRACK_LANES {
+        if lanes.len() == n_lanes || vw > 0 {
             let steps = lanes.iter().map(|l| l.n - l.k).min().unwrap_or(0);
             // The chains' state in locals (registers), not in the lanes.
-            let mut xv: [(f64, f64); AB_TRACK_LANES] =
-                std::array::from_fn(|q| (lanes[q].x, lanes[q].v));
-            'outer: for _ in 0..steps {
-                let mut ok = true;
-                for (l, xv) in lanes.iter_mut().zip(xv.iter_mut()) {
-                    ok &= lane_step::<T, L, N, M, FMA>(l, xv, z, t, max_gap, opts.t_nominal);
+            let mut xv: [(f64, f64); MAX_TRACK_LANES] =
+                std::array::from_fn(|q| lanes.get(q).map_or((0.0, 0.0), |l| (l.x, l.v)));
+            let mut done = 0;
+            'outer: while done < steps {
+                if vw > 0 {
+                    // Whole blocks of plain steps in the vector lanes.
+                    #[cfg(target_arch = "x86_64")]
+                    if let Some(ts) = t {
+                        done += vector_steps(
+                            &mut lanes,
+                            &mut xv,
+                            z,
+                            ts,
+                            steps - done,
+                            max_gap,
+                            &mut pad,
+                        );
+                    }
+                    if done >= steps {
+                        break;
+                    }
                 }
-                if !ok {
-                    break 'outer;
+                // Scalar steps: the rest (no vector lanes), or up to one
+                // block (the one the vector lanes left: it holds a step
+                // that stops a lane, or is the tail).
+                let lim = if vw > 0 {
+                    (steps - done).min(vw)
+                } else {
+                    steps - done
+                };
+                for _ in 0..lim {
+                    let mut ok = true;
+                    for (l, xv) in lanes.iter_mut().zip(xv.iter_mut()) {
+                        ok &= lane_step::<T, L, N, M, FMA>(l, xv, z, t, max_gap, opts.t_nominal);
+                    }
+                    if !ok {
+                        break 'outer;
+                    }
+                    done += 1;
                 }
             }
             for (l, xv) in lanes.iter_mut().zip(xv.iter()) {

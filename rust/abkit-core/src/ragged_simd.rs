@@ -1,0 +1,643 @@
+//! Vector lanes of the irregular-timestamp alpha-beta track kernel
+//! ([`crate::ragged`]): `W` running tracks in the `W` `f64` slots of one
+//! register (AVX-512: 8, AVX2: 4), each slot walking its own track.
+//!
+//! Per block of `W` steps each lane loads `W` consecutive measurements and
+//! timestamps of its track (two vector loads); `W x W` transposes give, per
+//! step, the vectors "this step of every lane"; the steps run in vectors:
+//! `dt = t_k - t_{k-1}`, the gain law at `dt` (both laws vectorised, see
+//! below), the update (a NaN measurement coasts); transposes give the
+//! estimates (and residuals) back as rows, stored `W` wide. A block whose
+//! steps are not all plain running steps of every lane (a timestamp not
+//! after the last one, not finite, or a gap beyond `max_gap`) is not run
+//! here: the caller's scalar lanes take it (restarts, drops and errors stay
+//! in the scalar code).
+//!
+//! Every slot does exactly the scalar arithmetic of the track kernel's lane
+//! step (`ab_update::<true>` and the law's `ab_gains`): the same operations
+//! (IEEE `+ - * / sqrt` and the same fused multiply-adds) in the same
+//! order, so results are bit-identical to the scalar lanes and to a track
+//! run alone. Gain laws:
+//!
+//! - fixed (`AbFixed`): `K = [alpha, beta / dt]`: one division per step;
+//! - design (`AbDesign`): `lambda = ratio dt^2` and the closed form of
+//!   [`crate::alphabeta::kalman_uv_from_lambda`] in both of its branches
+//!   (`lambda < 1`: two square roots, two divisions; `lambda >= 1`: one
+//!   square root, four divisions, `4 / lambda` taken as `(8 / lambda) / 2`,
+//!   exact for `lambda >= 1`), then `alpha = kalman_alpha(u, v)`,
+//!   `beta = 2 v^2`, `beta / dt`. A block computes only the branches its
+//!   lanes need (both, blended, when they differ).
+//!
+//! The vector code runs only on CPUs with AVX-512F + FMA (8 lanes) or AVX2 +
+//! FMA (4 lanes), and not when `ABKIT_DISABLE_SIMD` is set (to anything but
+//! `0`, before the first call); the scalar lanes run otherwise.
+#![allow(clippy::too_many_arguments)]
+
+use crate::filter::IoFloat;
+pub use crate::irregular::AbLaw;
+use std::any::TypeId;
+use std::arch::x86_64::*;
+
+fn disabled() -> bool {
+    std::env::var_os("ABKIT_DISABLE_SIMD").is_some_and(|v| v != "0")
+}
+
+/// Lanes of the vector kernel on this CPU: 8 (AVX-512F + FMA), 4 (AVX2 +
+/// FMA) or 0 (no vector kernel; also with `ABKIT_DISABLE_SIMD`). Checked
+/// once.
+pub fn width() -> usize {
+    use std::sync::OnceLock;
+    static W: OnceLock<usize> = OnceLock::new();
+    *W.get_or_init(|| {
+        if disabled() || !is_x86_feature_detected!("fma") {
+            0
+        } else if is_x86_feature_detected!("avx512f") {
+            8
+        } else if is_x86_feature_detected!("avx2") {
+            4
+        } else {
+            0
+        }
+    })
+}
+
+fn is_f64<T: 'static>() -> bool {
+    TypeId::of::<T>() == TypeId::of::<f64>()
+}
+
+fn is_f32<T: 'static>() -> bool {
+    TypeId::of::<T>() == TypeId::of::<f32>()
+}
+
+/// Whether the vector lanes handle the sample type `T`.
+pub fn handles<T: 'static>() -> bool {
+    is_f64::<T>() || is_f32::<T>()
+}
+
+/// One running track in a vector lane: its remaining samples (from the
+/// lane's current sample on, stride 1) and its state.
+pub struct VLane<'a, T> {
+    /// Measurements.
+    pub z: &'a [T],
+    /// Timestamps.
+    pub t: &'a [f64],
+    /// Position estimates.
+    pub xs: &'a mut [T],
+    /// Velocity estimates.
+    pub vs: &'a mut [T],
+    /// Residuals, if wanted.
+    pub rs: Option<&'a mut [T]>,
+    /// Position.
+    pub x: f64,
+    /// Velocity.
+    pub v: f64,
+    /// Last kept timestamp.
+    pub t_last: f64,
+    /// Gain law.
+    pub law: AbLaw,
+}
+
+/// Run the lanes (exactly [`width`] of them, all with the same kind of law)
+/// over at most `steps` samples, whole blocks of `width` steps, stopping
+/// before the first block that holds a step which is not a plain running
+/// step. Returns the number of steps done (the same for every lane); the
+/// lanes' states are updated. Every slice must hold `steps` samples.
+pub fn run<T: IoFloat>(lanes: &mut [VLane<'_, T>], steps: usize, max_gap: f64) -> usize {
+    let w = width();
+    if w == 0 || lanes.len() != w || !handles::<T>() {
+        return 0;
+    }
+    let fits = lanes.iter().all(|l| {
+        l.z.len() >= steps
+            && l.t.len() >= steps
+            && l.xs.len() >= steps
+            && l.vs.len() >= steps
+            && l.rs.as_ref().is_none_or(|r| r.len() >= steps)
+    });
+    let design = matches!(lanes[0].law, AbLaw::Design { .. });
+    let same = lanes
+        .iter()
+        .all(|l| matches!(l.law, AbLaw::Design { .. }) == design);
+    if !fits || !same {
+        return 0;
+    }
+    let resid = lanes[0].rs.is_some();
+    if lanes.iter().any(|l| l.rs.is_some() != resid) {
+        return 0;
+    }
+    if w == 8 {
+        if let Ok(l8) = <&mut [VLane<'_, T>; 8]>::try_from(lanes) {
+            // SAFETY: `width() == 8` checked AVX-512F and FMA.
+            return unsafe { run8(l8, steps, max_gap, design, resid) };
+        }
+    } else if w == 4 {
+        if let Ok(l4) = <&mut [VLane<'_, T>; 4]>::try_from(lanes) {
+            // SAFETY: `width() == 4` checked AVX2 and FMA.
+            return unsafe { run4(l4, steps, max_gap, design, resid) };
+        }
+    }
+    0
+}
+
+#[target_feature(enable = "avx512f,fma")]
+unsafe fn run8<T: IoFloat>(
+    lanes: &mut [VLane<'_, T>; 8],
+    steps: usize,
+    max_gap: f64,
+    design: bool,
+    resid: bool,
+) -> usize {
+    // SAFETY: forwarded (AVX-512F and FMA available; slices checked).
+    unsafe {
+        match (design, resid) {
+            (true, true) => kernel::<V8, T, 8, true, true>(lanes, steps, max_gap),
+            (true, false) => kernel::<V8, T, 8, true, false>(lanes, steps, max_gap),
+            (false, true) => kernel::<V8, T, 8, false, true>(lanes, steps, max_gap),
+            (false, false) => kernel::<V8, T, 8, false, false>(lanes, steps, max_gap),
+        }
+    }
+}
+
+#[target_feature(enable = "avx2,fma")]
+unsafe fn run4<T: IoFloat>(
+    lanes: &mut [VLane<'_, T>; 4],
+    steps: usize,
+    max_gap: f64,
+    design: bool,
+    resid: bool,
+) -> usize {
+    // SAFETY: forwarded (AVX2 and FMA available; slices checked).
+    unsafe {
+        match (design, resid) {
+            (true, true) => kernel::<V4, T, 4, true, true>(lanes, steps, max_gap),
+            (true, false) => kernel::<V4, T, 4, true, false>(lanes, steps, max_gap),
+            (false, true) => kernel::<V4, T, 4, false, true>(lanes, steps, max_gap),
+            (false, false) => kernel::<V4, T, 4, false, false>(lanes, steps, max_gap),
+        }
+    }
+}
+
+/// The vector operations of the kernel (all exactly rounded IEEE
+/// operations; `fmadd(a, b, c) = a b + c` and `fnmadd(a, b, c) = c - a b`
+/// fused).
+///
+/// # Safety
+/// Every method needs the CPU features of its implementation; callers are
+/// functions compiled with them.
+trait Vd<const W: usize>: Copy {
+    type Mask: Copy;
+    unsafe fn splat(x: f64) -> Self;
+    unsafe fn from_lanes(a: &[f64; W]) -> Self;
+    unsafe fn to_lanes(self) -> [f64; W];
+    unsafe fn add(self, b: Self) -> Self;
+    unsafe fn sub(self, b: Self) -> Self;
+    unsafe fn mul(self, b: Self) -> Self;
+    unsafe fn div(self, b: Self) -> Self;
+    unsafe fn sqrt(self) -> Self;
+    unsafe fn fmadd(self, b: Self, c: Self) -> Self;
+    unsafe fn fnmadd(self, b: Self, c: Self) -> Self;
+    /// `self > b`, `self <= b`, `self < b`, `self >= b` (false for NaN).
+    unsafe fn gt(self, b: Self) -> Self::Mask;
+    unsafe fn le(self, b: Self) -> Self::Mask;
+    unsafe fn lt(self, b: Self) -> Self::Mask;
+    unsafe fn ge(self, b: Self) -> Self::Mask;
+    /// Not NaN.
+    unsafe fn ord(self) -> Self::Mask;
+    unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    unsafe fn all(m: Self::Mask) -> bool;
+    unsafe fn none(m: Self::Mask) -> bool;
+    /// `m ? b : a` per slot.
+    unsafe fn blend(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// `W` consecutive values at `p`, widened.
+    unsafe fn load<T: 'static>(p: *const T) -> Self;
+    /// `W` values at `p`, narrowed (round to nearest).
+    unsafe fn store<T: 'static>(self, p: *mut T);
+    unsafe fn transpose(r: &mut [Self; W]);
+}
+
+#[derive(Clone, Copy)]
+struct V8(__m512d);
+
+impl Vd<8> for V8 {
+    type Mask = __mmask8;
+    #[inline(always)]
+    unsafe fn splat(x: f64) -> Self {
+        V8(_mm512_set1_pd(x))
+    }
+    #[inline(always)]
+    unsafe fn from_lanes(a: &[f64; 8]) -> Self {
+        // SAFETY: 8 readable f64.
+        V8(unsafe { _mm512_loadu_pd(a.as_ptr()) })
+    }
+    #[inline(always)]
+    unsafe fn to_lanes(self) -> [f64; 8] {
+        let mut a = [0.0; 8];
+        // SAFETY: 8 writable f64.
+        unsafe { _mm512_storeu_pd(a.as_mut_ptr(), self.0) };
+        a
+    }
+    #[inline(always)]
+    unsafe fn add(self, b: Self) -> Self {
+        V8(_mm512_add_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn sub(self, b: Self) -> Self {
+        V8(_mm512_sub_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn mul(self, b: Self) -> Self {
+        V8(_mm512_mul_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn div(self, b: Self) -> Self {
+        V8(_mm512_div_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn sqrt(self) -> Self {
+        V8(_mm512_sqrt_pd(self.0))
+    }
+    #[inline(always)]
+    unsafe fn fmadd(self, b: Self, c: Self) -> Self {
+        V8(_mm512_fmadd_pd(self.0, b.0, c.0))
+    }
+    #[inline(always)]
+    unsafe fn fnmadd(self, b: Self, c: Self) -> Self {
+        V8(_mm512_fnmadd_pd(self.0, b.0, c.0))
+    }
+    #[inline(always)]
+    unsafe fn gt(self, b: Self) -> __mmask8 {
+        _mm512_cmp_pd_mask::<_CMP_GT_OQ>(self.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn le(self, b: Self) -> __mmask8 {
+        _mm512_cmp_pd_mask::<_CMP_LE_OQ>(self.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn lt(self, b: Self) -> __mmask8 {
+        _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn ge(self, b: Self) -> __mmask8 {
+        _mm512_cmp_pd_mask::<_CMP_GE_OQ>(self.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn ord(self) -> __mmask8 {
+        _mm512_cmp_pd_mask::<_CMP_ORD_Q>(self.0, self.0)
+    }
+    #[inline(always)]
+    unsafe fn and(a: __mmask8, b: __mmask8) -> __mmask8 {
+        a & b
+    }
+    #[inline(always)]
+    unsafe fn all(m: __mmask8) -> bool {
+        m == 0xff
+    }
+    #[inline(always)]
+    unsafe fn none(m: __mmask8) -> bool {
+        m == 0
+    }
+    #[inline(always)]
+    unsafe fn blend(m: __mmask8, a: Self, b: Self) -> Self {
+        V8(_mm512_mask_blend_pd(m, a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn load<T: 'static>(p: *const T) -> Self {
+        // SAFETY: forwarded (T is f64 or f32, 8 values readable).
+        unsafe {
+            if is_f64::<T>() {
+                V8(_mm512_loadu_pd(p as *const f64))
+            } else {
+                V8(_mm512_cvtps_pd(_mm256_loadu_ps(p as *const f32)))
+            }
+        }
+    }
+    #[inline(always)]
+    unsafe fn store<T: 'static>(self, p: *mut T) {
+        // SAFETY: forwarded (T is f64 or f32, 8 values writable).
+        unsafe {
+            if is_f64::<T>() {
+                _mm512_storeu_pd(p as *mut f64, self.0)
+            } else {
+                _mm256_storeu_ps(p as *mut f32, _mm512_cvtpd_ps(self.0))
+            }
+        }
+    }
+    #[inline(always)]
+    unsafe fn transpose(r: &mut [Self; 8]) {
+        let t0 = _mm512_unpacklo_pd(r[0].0, r[1].0);
+        let t1 = _mm512_unpackhi_pd(r[0].0, r[1].0);
+        let t2 = _mm512_unpacklo_pd(r[2].0, r[3].0);
+        let t3 = _mm512_unpackhi_pd(r[2].0, r[3].0);
+        let t4 = _mm512_unpacklo_pd(r[4].0, r[5].0);
+        let t5 = _mm512_unpackhi_pd(r[4].0, r[5].0);
+        let t6 = _mm512_unpacklo_pd(r[6].0, r[7].0);
+        let t7 = _mm512_unpackhi_pd(r[6].0, r[7].0);
+        let lo = _mm512_set_epi64(13, 12, 5, 4, 9, 8, 1, 0);
+        let hi = _mm512_set_epi64(15, 14, 7, 6, 11, 10, 3, 2);
+        let u0 = _mm512_permutex2var_pd(t0, lo, t2);
+        let u2 = _mm512_permutex2var_pd(t0, hi, t2);
+        let u1 = _mm512_permutex2var_pd(t1, lo, t3);
+        let u3 = _mm512_permutex2var_pd(t1, hi, t3);
+        let u4 = _mm512_permutex2var_pd(t4, lo, t6);
+        let u6 = _mm512_permutex2var_pd(t4, hi, t6);
+        let u5 = _mm512_permutex2var_pd(t5, lo, t7);
+        let u7 = _mm512_permutex2var_pd(t5, hi, t7);
+        r[0] = V8(_mm512_shuffle_f64x2::<0b01_00_01_00>(u0, u4));
+        r[4] = V8(_mm512_shuffle_f64x2::<0b11_10_11_10>(u0, u4));
+        r[1] = V8(_mm512_shuffle_f64x2::<0b01_00_01_00>(u1, u5));
+        r[5] = V8(_mm512_shuffle_f64x2::<0b11_10_11_10>(u1, u5));
+        r[2] = V8(_mm512_shuffle_f64x2::<0b01_00_01_00>(u2, u6));
+        r[6] = V8(_mm512_shuffle_f64x2::<0b11_10_11_10>(u2, u6));
+        r[3] = V8(_mm512_shuffle_f64x2::<0b01_00_01_00>(u3, u7));
+        r[7] = V8(_mm512_shuffle_f64x2::<0b11_10_11_10>(u3, u7));
+    }
+}
+
+#[derive(Clone, Copy)]
+struct V4(__m256d);
+
+impl Vd<4> for V4 {
+    /// All-ones slots where true.
+    type Mask = __m256d;
+    #[inline(always)]
+    unsafe fn splat(x: f64) -> Self {
+        V4(_mm256_set1_pd(x))
+    }
+    #[inline(always)]
+    unsafe fn from_lanes(a: &[f64; 4]) -> Self {
+        // SAFETY: 4 readable f64.
+        V4(unsafe { _mm256_loadu_pd(a.as_ptr()) })
+    }
+    #[inline(always)]
+    unsafe fn to_lanes(self) -> [f64; 4] {
+        let mut a = [0.0; 4];
+        // SAFETY: 4 writable f64.
+        unsafe { _mm256_storeu_pd(a.as_mut_ptr(), self.0) };
+        a
+    }
+    #[inline(always)]
+    unsafe fn add(self, b: Self) -> Self {
+        V4(_mm256_add_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn sub(self, b: Self) -> Self {
+        V4(_mm256_sub_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn mul(self, b: Self) -> Self {
+        V4(_mm256_mul_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn div(self, b: Self) -> Self {
+        V4(_mm256_div_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn sqrt(self) -> Self {
+        V4(_mm256_sqrt_pd(self.0))
+    }
+    #[inline(always)]
+    unsafe fn fmadd(self, b: Self, c: Self) -> Self {
+        V4(_mm256_fmadd_pd(self.0, b.0, c.0))
+    }
+    #[inline(always)]
+    unsafe fn fnmadd(self, b: Self, c: Self) -> Self {
+        V4(_mm256_fnmadd_pd(self.0, b.0, c.0))
+    }
+    #[inline(always)]
+    unsafe fn gt(self, b: Self) -> __m256d {
+        _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn le(self, b: Self) -> __m256d {
+        _mm256_cmp_pd::<_CMP_LE_OQ>(self.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn lt(self, b: Self) -> __m256d {
+        _mm256_cmp_pd::<_CMP_LT_OQ>(self.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn ge(self, b: Self) -> __m256d {
+        _mm256_cmp_pd::<_CMP_GE_OQ>(self.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn ord(self) -> __m256d {
+        _mm256_cmp_pd::<_CMP_ORD_Q>(self.0, self.0)
+    }
+    #[inline(always)]
+    unsafe fn and(a: __m256d, b: __m256d) -> __m256d {
+        _mm256_and_pd(a, b)
+    }
+    #[inline(always)]
+    unsafe fn all(m: __m256d) -> bool {
+        _mm256_movemask_pd(m) == 0xf
+    }
+    #[inline(always)]
+    unsafe fn none(m: __m256d) -> bool {
+        _mm256_movemask_pd(m) == 0
+    }
+    #[inline(always)]
+    unsafe fn blend(m: __m256d, a: Self, b: Self) -> Self {
+        V4(_mm256_blendv_pd(a.0, b.0, m))
+    }
+    #[inline(always)]
+    unsafe fn load<T: 'static>(p: *const T) -> Self {
+        // SAFETY: forwarded (T is f64 or f32, 4 values readable).
+        unsafe {
+            if is_f64::<T>() {
+                V4(_mm256_loadu_pd(p as *const f64))
+            } else {
+                V4(_mm256_cvtps_pd(_mm_loadu_ps(p as *const f32)))
+            }
+        }
+    }
+    #[inline(always)]
+    unsafe fn store<T: 'static>(self, p: *mut T) {
+        // SAFETY: forwarded (T is f64 or f32, 4 values writable).
+        unsafe {
+            if is_f64::<T>() {
+                _mm256_storeu_pd(p as *mut f64, self.0)
+            } else {
+                _mm_storeu_ps(p as *mut f32, _mm256_cvtpd_ps(self.0))
+            }
+        }
+    }
+    #[inline(always)]
+    unsafe fn transpose(r: &mut [Self; 4]) {
+        let t0 = _mm256_unpacklo_pd(r[0].0, r[1].0);
+        let t1 = _mm256_unpackhi_pd(r[0].0, r[1].0);
+        let t2 = _mm256_unpacklo_pd(r[2].0, r[3].0);
+        let t3 = _mm256_unpackhi_pd(r[2].0, r[3].0);
+        r[0] = V4(_mm256_permute2f128_pd::<0x20>(t0, t2));
+        r[1] = V4(_mm256_permute2f128_pd::<0x20>(t1, t3));
+        r[2] = V4(_mm256_permute2f128_pd::<0x31>(t0, t2));
+        r[3] = V4(_mm256_permute2f128_pd::<0x31>(t1, t3));
+    }
+}
+
+/// Prefetch distance in samples.
+const PREFETCH: usize = 64;
+
+#[inline(always)]
+fn prefetch<T>(p: *const T) {
+    // SAFETY: a prefetch is a hint; it never faults, whatever the address.
+    unsafe { _mm_prefetch::<_MM_HINT_T0>(p as *const i8) }
+}
+
+/// `(alpha, beta / dt)` of the design law at `dt` in every slot: the
+/// scalar `AbDesign::ab_gains` (see the module docs).
+#[inline(always)]
+unsafe fn design_gains<V: Vd<W>, const W: usize>(ratio: V, dt: V) -> (V, V) {
+    // SAFETY: the caller has the CPU features of V.
+    unsafe {
+        let one = V::splat(1.0);
+        let lambda = ratio.mul(dt).mul(dt);
+        let hi = lambda.ge(one);
+        let (mut u, mut v) = (one, one);
+        if !V::all(hi) {
+            // s = sqrt(lambda) sqrt(lambda + 8), d = lambda + 4 + s.
+            let s = lambda.sqrt().mul(lambda.add(V::splat(8.0)).sqrt());
+            let d = lambda.add(V::splat(4.0)).add(s);
+            u = V::splat(4.0).div(d);
+            v = lambda.add(s).div(d);
+        }
+        if !V::none(hi) {
+            // w = (4 / lambda) / (1 + sqrt(1 + 8 / lambda)); 4 / lambda is
+            // exactly (8 / lambda) / 2 for lambda >= 1 (no underflow).
+            let q8 = V::splat(8.0).div(lambda);
+            let q4 = V::splat(0.5).mul(q8);
+            let w = q4.div(one.add(one.add(q8).sqrt()));
+            let opw = one.add(w);
+            u = V::blend(hi, u, w.div(opw));
+            v = V::blend(hi, v, one.div(opw));
+        }
+        // alpha = u < 0.5 ? 1 - u^2 : v (1 + u).
+        let small = u.lt(V::splat(0.5));
+        let a = V::blend(small, v.mul(one.add(u)), one.sub(u.mul(u)));
+        let b = V::splat(2.0).mul(v).mul(v);
+        (a, b.div(dt))
+    }
+}
+
+/// The kernel (see [`run`]).
+#[inline(always)]
+unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const RESID: bool>(
+    lanes: &mut [VLane<'_, T>; W],
+    steps: usize,
+    max_gap: f64,
+) -> usize {
+    // SAFETY: the caller has the CPU features of V; `run` checked that every
+    // slice holds `steps` samples and T is f32 or f64.
+    unsafe {
+        let par = |f: &dyn Fn(&AbLaw) -> f64| {
+            let a: [f64; W] = std::array::from_fn(|l| f(&lanes[l].law));
+            V::from_lanes(&a)
+        };
+        let p0 = par(&|law| match *law {
+            AbLaw::Fixed { alpha, .. } => alpha,
+            AbLaw::Design { ratio } => ratio,
+        });
+        let p1 = par(&|law| match *law {
+            AbLaw::Fixed { beta, .. } => beta,
+            AbLaw::Design { .. } => 0.0,
+        });
+        let mut x = V::from_lanes(&std::array::from_fn(|l| lanes[l].x));
+        let mut v = V::from_lanes(&std::array::from_fn(|l| lanes[l].v));
+        let mut t_last = V::from_lanes(&std::array::from_fn(|l| lanes[l].t_last));
+        let zero = V::splat(0.0);
+        let one = V::splat(1.0);
+        let nan = V::splat(f64::NAN);
+        let inf = V::splat(f64::INFINITY);
+        let gap = V::splat(max_gap);
+        let zp: [*const T; W] = std::array::from_fn(|l| lanes[l].z.as_ptr());
+        let tp: [*const f64; W] = std::array::from_fn(|l| lanes[l].t.as_ptr());
+        let xp: [*mut T; W] = std::array::from_fn(|l| lanes[l].xs.as_mut_ptr());
+        let vp: [*mut T; W] = std::array::from_fn(|l| lanes[l].vs.as_mut_ptr());
+        let rp: [*mut T; W] = std::array::from_fn(|l| {
+            lanes[l]
+                .rs
+                .as_deref_mut()
+                .map_or(std::ptr::null_mut(), |r| r.as_mut_ptr())
+        });
+        let mut k = 0;
+        while k + W <= steps {
+            // Prefetch PREFETCH samples ahead in every stream of every lane
+            // (16 to 20 streams are too many for the hardware prefetchers).
+            // Prefetches never fault, so the addresses may lie past the end.
+            for l in 0..W {
+                prefetch(tp[l].wrapping_add(k + PREFETCH));
+                prefetch(zp[l].wrapping_add(k + PREFETCH));
+                prefetch(xp[l].wrapping_add(k + PREFETCH));
+                prefetch(vp[l].wrapping_add(k + PREFETCH));
+                if RESID {
+                    prefetch(rp[l].wrapping_add(k + PREFETCH));
+                }
+            }
+            let mut tv: [V; W] = std::array::from_fn(|l| V::load(tp[l].add(k)));
+            V::transpose(&mut tv);
+            // dt of every step; the block runs only if all are plain steps:
+            // 0 < dt <= max_gap, dt finite.
+            let mut dt = [zero; W];
+            let mut prev = t_last;
+            let mut ok = true;
+            for j in 0..W {
+                let d = tv[j].sub(prev);
+                let m = V::and(V::and(d.gt(zero), d.le(gap)), d.lt(inf));
+                ok &= V::all(m);
+                dt[j] = d;
+                prev = tv[j];
+            }
+            if !ok {
+                break;
+            }
+            let mut zv: [V; W] = std::array::from_fn(|l| V::load(zp[l].add(k)));
+            V::transpose(&mut zv);
+            let mut xo = [zero; W];
+            let mut vo = [zero; W];
+            let mut eo = [zero; W];
+            for j in 0..W {
+                let d = dt[j];
+                let (a, g) = if DESIGN {
+                    design_gains::<V, W>(p0, d)
+                } else {
+                    (p0, p1.div(d))
+                };
+                // ab_update::<true>.
+                let zj = zv[j];
+                let xpred = d.fmadd(v, x);
+                let valid = zj.ord();
+                let zz = V::blend(valid, zero, zj);
+                let c1 = V::blend(valid, one, one.sub(a));
+                let gg = V::blend(valid, zero, g);
+                let w = gg.fmadd(zz, v);
+                x = c1.fmadd(xpred, a.mul(zz));
+                v = gg.fnmadd(xpred, w);
+                xo[j] = x;
+                vo[j] = v;
+                if RESID {
+                    eo[j] = V::blend(valid, nan, zj.sub(xpred));
+                }
+            }
+            t_last = tv[W - 1];
+            V::transpose(&mut xo);
+            V::transpose(&mut vo);
+            for l in 0..W {
+                xo[l].store(xp[l].add(k));
+                vo[l].store(vp[l].add(k));
+            }
+            if RESID {
+                V::transpose(&mut eo);
+                for l in 0..W {
+                    eo[l].store(rp[l].add(k));
+                }
+            }
+            k += W;
+        }
+        let (xa, va, ta) = (x.to_lanes(), v.to_lanes(), t_last.to_lanes());
+        for l in 0..W {
+            lanes[l].x = xa[l];
+            lanes[l].v = va[l];
+            lanes[l].t_last = ta[l];
+        }
+        k
+    }
+}
