@@ -28,9 +28,10 @@
 //!   `beta = 2 v^2`, `beta / dt`. A block computes only the branches its
 //!   lanes need (both, blended, when they differ).
 //!
-//! The vector code runs only on CPUs with AVX-512F + FMA (8 lanes) or AVX2 +
-//! FMA (4 lanes), and not when `ABKIT_DISABLE_SIMD` is set (to anything but
-//! `0`, before the first call); the scalar lanes run otherwise.
+//! The vector code runs only on CPUs with AVX2 + FMA (4 lanes; AVX-512F +
+//! FMA, 8 lanes, only with `ABKIT_TRACKS_AVX512=1`: not yet run on an
+//! AVX-512 machine), and not when `ABKIT_DISABLE_SIMD` is set (to anything
+//! but `0`, before the first call); the scalar lanes run otherwise.
 #![allow(clippy::too_many_arguments)]
 
 use crate::filter::IoFloat;
@@ -42,16 +43,20 @@ fn disabled() -> bool {
     std::env::var_os("ABKIT_DISABLE_SIMD").is_some_and(|v| v != "0")
 }
 
-/// Lanes of the vector kernel on this CPU: 8 (AVX-512F + FMA), 4 (AVX2 +
-/// FMA) or 0 (no vector kernel; also with `ABKIT_DISABLE_SIMD`). Checked
-/// once.
+/// Lanes of the vector kernel on this CPU: 4 (AVX2 + FMA), 8 (AVX-512F +
+/// FMA, **opt-in**: the environment variable `ABKIT_TRACKS_AVX512` set to
+/// anything but `0`, until the 8-lane build has been verified on an
+/// AVX-512 machine; it shares the generic kernel with the 4-lane one, only
+/// the vector type differs) or 0 (no vector kernel; also with
+/// `ABKIT_DISABLE_SIMD`). Checked once.
 pub fn width() -> usize {
     use std::sync::OnceLock;
     static W: OnceLock<usize> = OnceLock::new();
     *W.get_or_init(|| {
+        let opt_in = std::env::var_os("ABKIT_TRACKS_AVX512").is_some_and(|v| v != "0");
         if disabled() || !is_x86_feature_detected!("fma") {
             0
-        } else if is_x86_feature_detected!("avx512f") {
+        } else if opt_in && is_x86_feature_detected!("avx512f") {
             8
         } else if is_x86_feature_detected!("avx2") {
             4
