@@ -578,3 +578,225 @@ fn gen_scalar_steps<T: IoFloat, const N: usize, const M: usize>(
 pub(super) fn gen_fits<T: 'static>(m: usize) -> bool {
     (is_f64::<T>() || is_f32::<T>()) && (m == 1 || m == 2)
 }
+
+// ---------------------------------------------------------------------------
+// The general kernel on AVX-512: GEN_LANES8 = 8 tracks in the 8 f64 slots of
+// a zmm register.
+// ---------------------------------------------------------------------------
+
+/// Tracks of an AVX-512 general group.
+pub(super) const GEN_LANES8: usize = 8;
+
+/// The eight general lanes over samples `k0..n` (AVX-512; the contract of
+/// [`gen_lanes4`] with eight tracks): each lane first steps (scalar) to a
+/// sample where its first output row is aligned to a cache line; then blocks
+/// of one cache line of output per lane and component (8 `f64` or 16 `f32`
+/// samples): per 8 samples each lane loads `8 M` consecutive values, 8 x 8
+/// transposes give per-sample vectors across the lanes, the steps run in
+/// vectors (the coast `Phi x` only for samples where some lane misses), and
+/// 8 x 8 transposes give the rows back, stored as whole lines (non-temporal
+/// if `nt`, for aligned rows). Each slot does exactly the scalar `gen_step`
+/// arithmetic (same FMAs, same order), so results are bit-identical to the
+/// scalar lanes. `cs`, `xs`, `rows` and `group` have [`GEN_LANES8`] entries
+/// (else everything runs scalar).
+///
+/// # Safety
+/// The CPU supports AVX-512F and FMA ([`available`]).
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx512f,fma")]
+pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
+    cs: &[&GenConst<N, M>],
+    xs: &mut [[f64; N]],
+    k0: usize,
+    n: usize,
+    rows: &[&[T]],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
+    const L: usize = GEN_LANES8;
+    let size = std::mem::size_of::<T>();
+    // Samples per block: one 64-byte line of output.
+    let sb = 64 / size;
+    let ok = gen_fits::<T>(M)
+        && cs.len() == L
+        && xs.len() == L
+        && rows.len() == L
+        && group.len() == L
+        && rows.iter().all(|r| r.len() >= n * M)
+        && group
+            .iter()
+            .all(|j| j.2.states.iter().all(|s| s.len() >= n))
+        && n >= k0 + 3 * sb;
+    if !ok {
+        gen_scalar_steps8(cs, xs, rows, group, &[k0; L], &[n; L]);
+        return;
+    }
+    let mut k = [k0; L];
+    for l in 0..L {
+        let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
+        k[l] = k0 + ((64 - addr % 64) % 64) / size;
+    }
+    gen_scalar_steps8(cs, xs, rows, group, &[k0; L], &k);
+    let blocks = k
+        .iter()
+        .map(|&kl| n.saturating_sub(kl) / sb)
+        .min()
+        .unwrap_or(0);
+    let stream: [[bool; N]; L] = std::array::from_fn(|l| {
+        std::array::from_fn(|i| {
+            nt && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
+        })
+    });
+    let v8 = |f: &dyn Fn(&GenConst<N, M>) -> f64| {
+        _mm512_set_pd(
+            f(cs[7]),
+            f(cs[6]),
+            f(cs[5]),
+            f(cs[4]),
+            f(cs[3]),
+            f(cs[2]),
+            f(cs[1]),
+            f(cs[0]),
+        )
+    };
+    let a: [[__m512d; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.a[i][j])));
+    let phi: [[__m512d; N]; N] =
+        std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.phi[i][j])));
+    let kk: [[__m512d; M]; N] =
+        std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.k[i][j])));
+    let mut x: [__m512d; N] = std::array::from_fn(|i| {
+        _mm512_set_pd(
+            xs[7][i], xs[6][i], xs[5][i], xs[4][i], xs[3][i], xs[2][i], xs[1][i], xs[0][i],
+        )
+    });
+    let zero = _mm512_setzero_pd();
+    let rp: [*const T; L] = std::array::from_fn(|l| rows[l].as_ptr());
+    let op: [[*mut T; N]; L] =
+        std::array::from_fn(|l| std::array::from_fn(|i| group[l].2.states[i].as_mut_ptr()));
+    for b in 0..blocks {
+        // outv[i][h][s]: component i after sample h W + s of the block.
+        let mut outv = [[[zero; W]; 2]; N];
+        for h in 0..sb / W {
+            if let Some((dz, dout)) = ahead {
+                for l in 0..L {
+                    let at = k[l] + b * sb + h * W;
+                    for g in 0..M {
+                        prefetch(rp[l].wrapping_add(dz + at * M + g * W));
+                    }
+                    if !nt {
+                        for i in 0..N {
+                            prefetch(op[l][i].wrapping_add(dout + at));
+                        }
+                    }
+                }
+            }
+            // zs[s][c]: component c of each lane's sample k[l] + b sb + h W + s.
+            let mut zs = [[zero; M]; W];
+            for g in 0..M {
+                let mut r: [__m512d; L] = std::array::from_fn(|l| {
+                    let at = (k[l] + b * sb + h * W) * M + g * W;
+                    // SAFETY: at + W <= (k[l] + (b + 1) sb) M <= n M <= rows[l].len().
+                    unsafe { load8(rp[l].add(at)) }
+                });
+                transpose8(&mut r);
+                for (i, ri) in r.iter().enumerate() {
+                    let idx = g * W + i;
+                    zs[idx / M][idx % M] = *ri;
+                }
+            }
+            for (s, zsv) in zs.iter().enumerate() {
+                let mut valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zsv[0], zsv[0]);
+                for zc in zsv.iter().skip(1) {
+                    valid &= _mm512_cmp_pd_mask::<_CMP_ORD_Q>(*zc, *zc);
+                }
+                let xn: [__m512d; N] = std::array::from_fn(|i| {
+                    let mut u = _mm512_mul_pd(kk[i][0], zsv[0]);
+                    for j in 1..M {
+                        u = _mm512_fmadd_pd(kk[i][j], zsv[j], u);
+                    }
+                    for j in 0..N {
+                        u = _mm512_fmadd_pd(a[i][j], x[j], u);
+                    }
+                    if valid == 0xff {
+                        return u;
+                    }
+                    let mut p = zero;
+                    for j in 0..N {
+                        p = _mm512_fmadd_pd(phi[i][j], x[j], p);
+                    }
+                    _mm512_mask_blend_pd(valid, p, u)
+                });
+                x = xn;
+                for i in 0..N {
+                    outv[i][h][s] = x[i];
+                }
+            }
+            for ov in outv.iter_mut() {
+                transpose8(&mut ov[h]);
+            }
+        }
+        for (i, ov) in outv.iter().enumerate() {
+            for l in 0..L {
+                let at = k[l] + b * sb;
+                // SAFETY: at + sb <= n <= states[i].len(); streamed rows are
+                // aligned to 64 bytes at `at` (checked in `stream`, and
+                // `at - k[l]` is a whole number of lines).
+                unsafe { store_line(op[l][i].add(at), ov[0][l], ov[1][l], stream[l][i]) };
+            }
+        }
+    }
+    if nt {
+        _mm_sfence();
+    }
+    for i in 0..N {
+        let mut t = [0.0; L];
+        // SAFETY: t is a plain array of 8 f64.
+        unsafe { _mm512_storeu_pd(t.as_mut_ptr(), x[i]) };
+        for l in 0..L {
+            xs[l][i] = t[l];
+        }
+    }
+    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * sb).min(n));
+    gen_scalar_steps8(cs, xs, rows, group, &from, &[n; L]);
+}
+
+/// Scalar steps of every general lane `l` over samples `from[l]..to[l]`,
+/// the lanes interleaved (any number of lanes: the shortest of the slices).
+#[inline]
+#[target_feature(enable = "fma")]
+fn gen_scalar_steps8<T: IoFloat, const N: usize, const M: usize>(
+    cs: &[&GenConst<N, M>],
+    xs: &mut [[f64; N]],
+    rows: &[&[T]],
+    group: &mut [Job<'_, T, N>],
+    from: &[usize],
+    to: &[usize],
+) {
+    let lanes = cs
+        .len()
+        .min(xs.len())
+        .min(rows.len())
+        .min(group.len())
+        .min(from.len())
+        .min(to.len());
+    let most = (0..lanes)
+        .map(|l| to[l].saturating_sub(from[l]))
+        .max()
+        .unwrap_or(0);
+    for s in 0..most {
+        for l in 0..lanes {
+            let k = from[l] + s;
+            if k < to[l] && (k + 1) * M <= rows[l].len() {
+                let zk: [f64; M] = std::array::from_fn(|j| rows[l][k * M + j].to_f64());
+                xs[l] = gen_step::<N, M, true>(cs[l], &xs[l], &zk);
+                let o = &mut group[l].2;
+                for i in 0..N {
+                    if let Some(d) = o.states[i].get_mut(k) {
+                        *d = T::from_f64(xs[l][i]);
+                    }
+                }
+            }
+        }
+    }
+}
