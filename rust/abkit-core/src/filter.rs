@@ -1628,23 +1628,39 @@ fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         }
         let zrows: [&[T]; S] =
             std::array::from_fn(|j| &row[(k0 + j * ls) * M..(k0 + (j + 1) * ls) * M]);
-        let nt = streamed::<T>(N * n * std::mem::size_of::<T>(), false);
+        // Groups of 8 segments on the AVX-512 lanes where the CPU has them
+        // (16 segments either way: the same bits).
+        let gl = if FMA {
+            gen_group_size::<T, M>()
+        } else {
+            GEN_LANES
+        };
+        let nt = streamed::<T>(N * n * std::mem::size_of::<T>(), gl > GEN_LANES);
         type Seg<'s, 'j, T, const N: usize> =
             (usize, (&'s mut [Job<'j, T, N>], &'s mut [[f64; N]]));
         let run = |(gi, (grp, xs)): Seg<'_, '_, T, N>| {
+            #[cfg(target_arch = "x86_64")]
+            if gl == simd::GEN_LANES8 {
+                const L: usize = simd::GEN_LANES8;
+                let rows: [&[T]; L] = std::array::from_fn(|l| zrows[gi * L + l]);
+                // SAFETY: `gen_group_size` said 8 only if `simd::available()`
+                // checked AVX-512F and FMA on this CPU.
+                unsafe { simd::gen_lanes8::<T, N, M>(&[c; L], xs, 0, ls, &rows, grp, None, nt) };
+                return;
+            }
             let rows: [&[T]; GEN_LANES] = std::array::from_fn(|l| zrows[gi * GEN_LANES + l]);
             let mut xl: [[f64; N]; GEN_LANES] = std::array::from_fn(|l| xs[l]);
             gen_lanes_entry::<T, N, M, FMA>([c; GEN_LANES], &mut xl, 0, ls, rows, grp, None, nt);
             xs.copy_from_slice(&xl);
         };
         if parallel {
-            jobs.par_chunks_mut(GEN_LANES)
-                .zip(ends.par_chunks_mut(GEN_LANES))
+            jobs.par_chunks_mut(gl)
+                .zip(ends.par_chunks_mut(gl))
                 .enumerate()
                 .for_each(run);
         } else {
-            jobs.chunks_mut(GEN_LANES)
-                .zip(ends.chunks_mut(GEN_LANES))
+            jobs.chunks_mut(gl)
+                .zip(ends.chunks_mut(gl))
                 .enumerate()
                 .for_each(run);
         }
