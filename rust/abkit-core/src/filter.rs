@@ -1238,13 +1238,14 @@ pub const GEN_LANES: usize = 4;
 const GEN_GROUP_MAX: usize = 2 * GEN_LANES;
 
 /// Tracks per group of the general kernel: eight where the AVX-512 lanes run
-/// (`f32`/`f64`, one or two measurement components), else `GEN_LANES`. A
+/// (`f32`/`f64`, one or two measurement components; opt-in for now, see
+/// `simd::gen8_enabled`), else `GEN_LANES`. A
 /// group of eight that cannot run as one vector group runs as two groups of
 /// `GEN_LANES`, so every track takes the same path (and gives the same bits)
 /// whatever the group size.
 fn gen_group_size<T: 'static, const M: usize>() -> usize {
     #[cfg(target_arch = "x86_64")]
-    if uses_fma() && simd::available() && simd::gen_fits::<T>(M) {
+    if uses_fma() && simd::gen8_enabled() && simd::gen_fits::<T>(M) {
         return GEN_GROUP_MAX;
     }
     GEN_LANES
@@ -1326,7 +1327,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         let ahead =
             (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0).then(|| (L * z.s_track as usize, L * n));
         let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), true);
-        // SAFETY: `gen_group_size` said 8 only if `simd::available()` checked
+        // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled()` checked
         // AVX-512F and FMA on this CPU.
         unsafe { simd::gen_lanes8::<T, N, M>(&cs, &mut xs, kmax, n, &rows, group, ahead, nt) };
         for (l, (_, st, _)) in group.iter_mut().enumerate() {
@@ -1643,7 +1644,7 @@ fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
             if gl == simd::GEN_LANES8 {
                 const L: usize = simd::GEN_LANES8;
                 let rows: [&[T]; L] = std::array::from_fn(|l| zrows[gi * L + l]);
-                // SAFETY: `gen_group_size` said 8 only if `simd::available()`
+                // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled()`
                 // checked AVX-512F and FMA on this CPU.
                 unsafe { simd::gen_lanes8::<T, N, M>(&[c; L], xs, 0, ls, &rows, grp, None, nt) };
                 return;

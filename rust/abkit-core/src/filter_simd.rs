@@ -1,6 +1,8 @@
 //! Vector lanes. Alpha-beta (AVX-512): the eight tracks of an [`AB_LANES`]
-//! group in the eight `f64` slots of one register. The general kernel
-//! (AVX2): the four tracks of a [`GEN_LANES`] group (see [`gen_lanes4`]).
+//! group in the eight `f64` slots of one register. The general kernel:
+//! eight tracks per register with AVX-512 ([`gen_lanes8`], groups of
+//! [`GEN_LANES8`]), else the four tracks of a [`GEN_LANES`] group in an AVX2
+//! register ([`gen_lanes4`]).
 //!
 //! Each lane reads eight consecutive samples of its own track (one vector
 //! load), an 8 x 8 transpose turns the eight rows into eight vectors of "the
@@ -586,6 +588,20 @@ pub(super) fn gen_fits<T: 'static>(m: usize) -> bool {
 
 /// Tracks of an AVX-512 general group.
 pub(super) const GEN_LANES8: usize = 8;
+
+/// Whether the AVX-512 general lanes ([`gen_lanes8`]) run: only where
+/// [`available`] and the environment variable `ABKIT_GEN_AVX512` is set to
+/// anything but `0` (checked once). Opt-in until the kernel has been
+/// verified bit for bit on an AVX-512 machine (tests/test_filters_lanes.py,
+/// `test_general_lanes8_equal_scalar_bitwise`, switches it on in its child
+/// process); results are the same bits either way.
+pub(super) fn gen8_enabled() -> bool {
+    use std::sync::OnceLock;
+    static OK: OnceLock<bool> = OnceLock::new();
+    *OK.get_or_init(|| {
+        available() && std::env::var_os("ABKIT_GEN_AVX512").is_some_and(|v| v != "0")
+    })
+}
 
 /// The eight general lanes over samples `k0..n` (AVX-512; the contract of
 /// [`gen_lanes4`] with eight tracks): each lane first steps (scalar) to a
