@@ -1433,7 +1433,8 @@ fn gen_rest<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     }
     let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
         .then(|| (GEN_LANES * z.s_track as usize, GEN_LANES * n));
-    let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), false);
+    // Whole lines of f32 too (see `simd::gen_lanes4`).
+    let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), true);
     let cs: [&GenConst<N, M>; GEN_LANES] = cs;
     gen_lanes_entry::<T, N, M, FMA>(cs, &mut xs, kmax, n, rows, group, ahead, nt);
     for (l, (_, st, _)) in group.iter_mut().enumerate() {
@@ -1636,7 +1637,7 @@ fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         } else {
             GEN_LANES
         };
-        let nt = streamed::<T>(N * n * std::mem::size_of::<T>(), gl > GEN_LANES);
+        let nt = streamed::<T>(N * n * std::mem::size_of::<T>(), true);
         type Seg<'s, 'j, T, const N: usize> =
             (usize, (&'s mut [Job<'j, T, N>], &'s mut [[f64; N]]));
         let run = |(gi, (grp, xs)): Seg<'_, '_, T, N>| {

@@ -356,11 +356,11 @@ unsafe fn load4<T: 'static>(p: *const T) -> __m256d {
 }
 
 /// Store four values at `p`, narrowed to `T` (round to nearest); streamed
-/// past the caches if `nt` (`f64` only).
+/// past the caches if `nt`.
 ///
 /// # Safety
-/// `T` is `f64` or `f32`, `p..p+4` is writable and, if `nt`, aligned to 32
-/// bytes; AVX is available.
+/// `T` is `f64` or `f32`, `p..p+4` is writable and, if `nt`, aligned to 4
+/// values (32 or 16 bytes); AVX is available.
 #[inline]
 #[target_feature(enable = "avx2")]
 unsafe fn store4<T: 'static>(p: *mut T, v: __m256d, nt: bool) {
@@ -373,7 +373,12 @@ unsafe fn store4<T: 'static>(p: *mut T, v: __m256d, nt: bool) {
                 _mm256_storeu_pd(p as *mut f64, v)
             }
         } else {
-            _mm_storeu_ps(p as *mut f32, _mm256_cvtpd_ps(v))
+            let v = _mm256_cvtpd_ps(v);
+            if nt {
+                _mm_stream_ps(p as *mut f32, v)
+            } else {
+                _mm_storeu_ps(p as *mut f32, v)
+            }
         }
     }
 }
@@ -397,12 +402,12 @@ fn transpose4(r: &mut [__m256d; 4]) {
 /// outputs, `x[l]` its state (updated). Each lane first steps (scalar) to a
 /// sample where its first output row is aligned to a cache line (lanes are
 /// independent tracks, so they may be at different samples); then blocks of
-/// 8 samples: per half-block each lane loads `4 M` consecutive values, 4 x 4
-/// transposes give per-sample vectors across the lanes, the steps run in
-/// vectors (both the update `A x + K z` and the coast `Phi x` are computed,
-/// and blended per lane on "every component valid"), and transposes give
-/// the rows back, stored as whole lines (non-temporal if `nt`, for aligned
-/// `f64` rows). Each slot does exactly the scalar `gen_step` arithmetic (same
+/// one output line (8 `f64` or 16 `f32` samples): per 4 samples each lane
+/// loads `4 M` consecutive values, 4 x 4 transposes give per-sample vectors
+/// across the lanes, the steps run in vectors (the update `A x + K z`, and
+/// where some lane misses a component also the coast `Phi x`, blended per
+/// lane on "every component valid"), and transposes give the rows back,
+/// stored as whole lines (non-temporal if `nt`, for aligned rows). Each slot does exactly the scalar `gen_step` arithmetic (same
 /// FMAs, same order), so results are bit-identical to the scalar lanes.
 ///
 /// # Safety
@@ -420,15 +425,18 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     nt: bool,
 ) {
     const L: usize = GEN_LANES;
-    const B: usize = 2 * L;
+    // Samples per block: one 64-byte line of output per lane and component
+    // (8 f64 or 16 f32); `BMAX` sizes the buffers.
+    const BMAX: usize = 4 * L;
     let size = std::mem::size_of::<T>();
+    let bs = (64 / size).min(BMAX);
     let ok = gen_fits::<T>(M)
         && group.len() == L
         && rows.iter().all(|r| r.len() >= n * M)
         && group
             .iter()
             .all(|j| j.2.states.iter().all(|s| s.len() >= n))
-        && n >= k0 + 4 * B;
+        && n >= k0 + 4 * bs;
     let mut k = [k0; L];
     if ok {
         for l in 0..L {
@@ -441,13 +449,12 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     gen_scalar_steps(cs, xs, &rows, group, [k0; L], k);
     let blocks = k
         .iter()
-        .map(|&kl| n.saturating_sub(kl) / B)
+        .map(|&kl| n.saturating_sub(kl) / bs)
         .min()
         .unwrap_or(0);
     let stream: [[bool; N]; L] = std::array::from_fn(|l| {
         std::array::from_fn(|i| {
-            nt && is_f64::<T>()
-                && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
+            nt && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
         })
     });
     let v4 =
@@ -463,7 +470,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     for b in 0..blocks {
         if let Some((dz, dout)) = ahead {
             for l in 0..L {
-                let at = k[l] + b * B;
+                let at = k[l] + b * bs;
                 prefetch(rows[l].as_ptr().wrapping_add(dz + at * M));
                 if !nt {
                     for i in 0..N {
@@ -472,14 +479,14 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                 }
             }
         }
-        let mut outv = [[zero; B]; N];
-        for h in 0..2 {
-            // zs[s][c]: component c of each lane's sample k[l] + b B + h L + s.
+        let mut outv = [[zero; BMAX]; N];
+        for h in 0..bs / L {
+            // zs[s][c]: component c of each lane's sample k[l] + b bs + h L + s.
             let mut zs = [[zero; M]; L];
             for g in 0..M {
                 let mut r: [__m256d; L] = std::array::from_fn(|l| {
-                    let at = (k[l] + b * B + h * L) * M + g * L;
-                    // SAFETY: at + L <= (k[l] + (b + 1) B) M <= n M <= rows[l].len().
+                    let at = (k[l] + b * bs + h * L) * M + g * L;
+                    // SAFETY: at + L <= (k[l] + (b + 1) bs) M <= n M <= rows[l].len().
                     unsafe { load4(rows[l].as_ptr().add(at)) }
                 });
                 transpose4(&mut r);
@@ -493,6 +500,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                 for zc in zsv.iter().skip(1) {
                     valid = _mm256_and_pd(valid, _mm256_cmp_pd::<_CMP_ORD_Q>(*zc, *zc));
                 }
+                let all_valid = _mm256_movemask_pd(valid) == 0xf;
                 let xn: [__m256d; N] = std::array::from_fn(|i| {
                     let mut u = _mm256_mul_pd(kk[i][0], zsv[0]);
                     for j in 1..M {
@@ -500,6 +508,9 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                     }
                     for j in 0..N {
                         u = _mm256_fmadd_pd(a[i][j], x[j], u);
+                    }
+                    if all_valid {
+                        return u;
                     }
                     let mut p = zero;
                     for j in 0..N {
@@ -514,18 +525,16 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             }
         }
         for (i, ov) in outv.iter().enumerate() {
-            let mut lo: [__m256d; L] = std::array::from_fn(|s| ov[s]);
-            let mut hi: [__m256d; L] = std::array::from_fn(|s| ov[L + s]);
-            transpose4(&mut lo);
-            transpose4(&mut hi);
-            for l in 0..L {
-                let p = group[l].2.states[i].as_mut_ptr();
-                let at = k[l] + b * B;
-                // SAFETY: at + B <= n <= states[i].len(); streamed rows are
-                // aligned to 64 bytes at `at` (checked in `stream`).
-                unsafe {
-                    store4(p.add(at), lo[l], stream[l][i]);
-                    store4(p.add(at + L), hi[l], stream[l][i]);
+            for q in 0..bs / L {
+                let mut r: [__m256d; L] = std::array::from_fn(|s| ov[q * L + s]);
+                transpose4(&mut r);
+                for l in 0..L {
+                    let p = group[l].2.states[i].as_mut_ptr();
+                    let at = k[l] + b * bs + q * L;
+                    // SAFETY: at + L <= k[l] + (b + 1) bs <= n <= states[i].len();
+                    // streamed rows are aligned to 64 bytes at k[l] (checked
+                    // in `stream`), so to 4 values at `at`.
+                    unsafe { store4(p.add(at), r[l], stream[l][i]) };
                 }
             }
         }
@@ -541,7 +550,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             xs[l][i] = t[l];
         }
     }
-    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * B).min(n));
+    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * bs).min(n));
     gen_scalar_steps(cs, xs, &rows, group, from, [n; L]);
 }
 
