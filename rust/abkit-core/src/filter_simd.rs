@@ -397,6 +397,10 @@ fn transpose4(r: &mut [__m256d; 4]) {
     r[3] = _mm256_permute2f128_pd::<0x31>(t1, t3);
 }
 
+/// Rows shorter than this (after the start) run the `f32` general lanes
+/// without aligning heads.
+const SHORT_F32: usize = 512;
+
 /// The four general lanes over samples `k0..n`: `rows[l]` holds lane `l`'s
 /// measurements (`n * M` values, sample-major), `group[l].2.states[i]` its
 /// outputs, `x[l]` its state (updated). Each lane first steps (scalar) to a
@@ -438,12 +442,15 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             .all(|j| j.2.states.iter().all(|s| s.len() >= n))
         && n >= k0 + 4 * bs;
     let mut k = [k0; L];
-    if ok {
+    // Short f32 rows skip the aligning heads (up to 15 scalar samples of a
+    // short row cost more than the unaligned, regular stores).
+    let align = !(is_f32::<T>() && n - k0 < SHORT_F32);
+    if ok && align {
         for l in 0..L {
             let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
             k[l] = k0 + ((64 - addr % 64) % 64) / size;
         }
-    } else {
+    } else if !ok {
         k = [n; L];
     }
     gen_scalar_steps(cs, xs, &rows, group, [k0; L], k);
