@@ -444,7 +444,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     let mut k = [k0; L];
     // Short f32 rows skip the aligning heads (up to 15 scalar samples of a
     // short row cost more than the unaligned, regular stores).
-    let align = !(is_f32::<T>() && n - k0 < SHORT_F32);
+    let align = !(is_f32::<T>() && n.saturating_sub(k0) < SHORT_F32);
     if ok && align {
         for l in 0..L {
             let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
