@@ -237,3 +237,140 @@ def test_general_lanes_large_output_streamed():
     idx = np.r_[0:5, 301:313, 690:700]
     scalar = f.run(z[idx], return_residuals=True)
     assert np.array_equal(lanes.states[:, idx], scalar.states, equal_nan=True)
+
+
+# ---------------------------------------------------------------------------
+# The general kernel's AVX-512 lanes (8 tracks per vector register, groups of
+# 8 where the CPU has AVX-512, else groups of 4 / scalar): the same bits as
+# the scalar per-track loop in process, and as a process with
+# ABKIT_DISABLE_SIMD=1 (scalar lanes, groups of 4). The 8-lane kernel is
+# opt-in for now (ABKIT_GEN_AVX512=1, read once per process), so the child
+# processes switch it on; on a CPU without AVX-512 they run the 4-lane AVX2
+# path / scalar lanes, and the comparisons still hold.
+# ---------------------------------------------------------------------------
+def _run_child(code, args, env):
+    import os
+    import subprocess
+    import sys
+
+    e = dict(os.environ)
+    e.pop("ABKIT_DISABLE_SIMD", None)
+    e.pop("ABKIT_GEN_AVX512", None)
+    e.update(env)
+    subprocess.run([sys.executable, "-c", code, *args], check=True, env=e)
+
+
+def _ab_fg(T=0.5, a=0.5, b=0.2):
+    """The alpha-beta filter as a general 2-state, 1-measurement model."""
+    return np.array([[1.0, T], [0.0, 1.0]]), np.array([[1.0, 0.0]]), np.array([[a], [b / T]]), T
+
+
+GEN8_SHAPES = [(8, 23), (8, 24), (8, 25), (9, 33), (16, 47), (16, 48), (17, 49), (7, 64), (15, 65), (24, 100), (17, 129), (8, 257), (11, 1001)]
+GEN8_PATTERNS = ["none", "random", "runs", "leading", "all-nan-tracks"]
+# model name -> (n states, m components)
+GEN8_MODELS = {"abg": (3, 1), "abg-per-track": (3, 1), "singer-m2": (3, 2), "ab-fg": (2, 1)}
+_GEN8_CHILD = """
+import sys, numpy as np, abkit
+d = sys.argv[1]
+spec = np.load(d + '/spec.npz')
+out = {}
+for key in spec['keys']:
+    key = str(key)
+    z = spec['z_' + key]
+    model = key.split('|')[0]
+    if model == 'abg':
+        f = abkit.AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5)
+    elif model == 'abg-per-track':
+        p = spec['p_' + key]
+        f = abkit.AlphaBetaGammaFilter(p[0], p[1], p[2], p[3])
+    else:
+        f = abkit.FixedGainFilter(spec['P_' + model], spec['H_' + model], spec['K_' + model], float(spec['T_' + model]))
+    init = 'first' if z.ndim == 3 else 'two-point'
+    r = f.run(z, init=init)
+    out['s_' + key] = r.states
+    out['x_' + key] = r.state.x
+    n = z.shape[1]
+    parts, st = [], None
+    for lo, hi in [(0, 3), (3, n // 2), (n // 2, n // 2 + 1), (n // 2 + 1, n)]:
+        rr = f.run(z[:, lo:hi], state=st, init=init)
+        parts.append(rr.states)
+        st = rr.state
+    out['c_' + key] = np.concatenate(parts, axis=2)
+np.savez(d + '/out_' + sys.argv[2] + '.npz', **out)
+"""
+
+
+def _gen8_filter(spec, key):
+    model = key.split("|")[0]
+    if model == "abg":
+        return AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5)
+    if model == "abg-per-track":
+        p = spec["p_" + key]
+        return AlphaBetaGammaFilter(p[0], p[1], p[2], p[3])
+    return FixedGainFilter(spec["P_" + model], spec["H_" + model], spec["K_" + model], float(spec["T_" + model]))
+
+
+def test_general_lanes8_equal_scalar_bitwise(tmp_path):
+    spec = {}
+    for model, P in (("singer-m2", _singer()), ("ab-fg", _ab_fg())):
+        spec["P_" + model], spec["H_" + model], spec["K_" + model], spec["T_" + model] = P
+    keys = []
+    for model, (_, m) in GEN8_MODELS.items():
+        for ntr, n in GEN8_SHAPES:
+            for pat in GEN8_PATTERNS:
+                for dt in (np.float64, np.float32):
+                    key = f"{model}|{ntr}|{n}|{pat}|{np.dtype(dt).name}"
+                    rng = np.random.default_rng(zlib.crc32(key.encode()))
+                    z = fr.with_nans(rng, fr.kinematic_z(rng, ntr, n, 0.5, m=m), pat).astype(dt)
+                    spec["z_" + key] = z
+                    if model == "abg-per-track":
+                        spec["p_" + key] = np.array(
+                            [rng.uniform(0.3, 0.8, ntr), rng.uniform(0.05, 0.3, ntr), rng.uniform(0.001, 0.02, ntr), rng.uniform(0.1, 2.0, ntr)]
+                        )
+                    keys.append(key)
+    spec["keys"] = np.array(keys)
+    np.savez(tmp_path / "spec.npz", **spec)
+    for tag, env in (("on", {"ABKIT_GEN_AVX512": "1"}), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
+        _run_child(_GEN8_CHILD, [str(tmp_path), tag], env)
+    on = np.load(tmp_path / "out_on.npz")
+    off = np.load(tmp_path / "out_off.npz")
+    loaded = np.load(tmp_path / "spec.npz")
+    for key in keys:
+        model = key.split("|")[0]
+        N, m = GEN8_MODELS[model]
+        s = on["s_" + key]
+        z = loaded["z_" + key]
+        assert s.shape == (N,) + z.shape[:2] and s.dtype == z.dtype, key
+        assert np.array_equal(s, off["s_" + key], equal_nan=True), key
+        assert np.array_equal(on["x_" + key], off["x_" + key], equal_nan=True), key
+        # streaming in chunks: the same bits as one run, with and without SIMD
+        assert np.array_equal(on["c_" + key], s, equal_nan=True), key
+        assert np.array_equal(off["c_" + key], s, equal_nan=True), key
+        # and the scalar per-track loop (residuals requested) in this process
+        init = "first" if m == 2 else "two-point"
+        scalar = _gen8_filter(loaded, key).run(z, init=init, return_residuals=True)
+        assert np.array_equal(s, scalar.states, equal_nan=True), key
+    # the rows really are filtered (not left as they were): close to the reference
+    key = "abg|24|100|random|float64"
+    s, _, _ = fr.run_ref(loaded["z_" + key], fr.abg_model(0.5, 0.3, 0.05, 0.5), "two-point")
+    fr.assert_states_close(on["s_" + key], s, RTOL, kin_T=0.5)
+
+
+def test_general_lanes_large_output_streamed_f32(tmp_path):
+    # 3 x 1400 x 4000 float32 outputs = 67.2 MB >= 64 MiB: the 8-lane
+    # kernel's non-temporal whole-line stores of float32 (in a child with the
+    # 8-lane kernel switched on).
+    rng = np.random.default_rng(5)
+    z = fr.with_nans(rng, fr.kinematic_z(rng, 1400, 4000, 0.5), "random").astype(np.float32)
+    np.save(tmp_path / "z.npy", z)
+    code = (
+        "import sys, numpy as np, abkit\n"
+        "z = np.load(sys.argv[1] + '/z.npy')\n"
+        "np.save(sys.argv[1] + '/s.npy', abkit.AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5).run(z).states)\n"
+    )
+    _run_child(code, [str(tmp_path)], {"ABKIT_GEN_AVX512": "1"})
+    lanes = np.load(tmp_path / "s.npy")
+    assert lanes.shape == (3, 1400, 4000) and lanes.dtype == np.float32
+    idx = np.r_[0:5, 301:313, 1390:1400]
+    scalar = AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5).run(z[idx], return_residuals=True)
+    assert np.array_equal(lanes[:, idx], scalar.states, equal_nan=True)

@@ -1234,6 +1234,23 @@ fn gen_loop<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
 /// Lanes of the interleaved general kernel.
 pub const GEN_LANES: usize = 4;
 
+/// Largest group of the general kernel: eight tracks with the AVX-512 lanes.
+const GEN_GROUP_MAX: usize = 2 * GEN_LANES;
+
+/// Tracks per group of the general kernel: eight where the AVX-512 lanes run
+/// (`f32`/`f64`, one or two measurement components; opt-in for now, see
+/// `simd::gen8_enabled`), else `GEN_LANES`. A
+/// group of eight that cannot run as one vector group runs as two groups of
+/// `GEN_LANES`, so every track takes the same path (and gives the same bits)
+/// whatever the group size.
+fn gen_group_size<T: 'static, const M: usize>() -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if uses_fma() && simd::gen8_enabled() && simd::gen_fits::<T>(M) {
+        return GEN_GROUP_MAX;
+    }
+    GEN_LANES
+}
+
 /// General fixed-gain filtering of a group of tracks: start-up per track,
 /// then (for a full group of running tracks with contiguous rows and no
 /// residuals) `GEN_LANES` tracks interleaved; same arithmetic per track in
@@ -1249,7 +1266,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
 ) {
     let n = z.n_samples;
     let pick = |i: usize| if gains.len() == 1 { 0 } else { i };
-    let mut k0 = [0usize; GEN_LANES];
+    let mut k0 = [0usize; GEN_GROUP_MAX];
     for (g, (i, st, o)) in group.iter_mut().enumerate() {
         let i = *i;
         let zf = |k: usize| -> [f64; M] { std::array::from_fn(|j| z.at(i, k, j)) };
@@ -1271,10 +1288,73 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
             head.resid = o.resid.as_deref_mut().map(|r| &mut r[..len * M]);
             run_track(&gains[pick(i)], init, st, len, zf, &mut head);
         }
-        if g < GEN_LANES {
+        if g < GEN_GROUP_MAX {
             k0[g] = len;
         }
     }
+    #[cfg(target_arch = "x86_64")]
+    if FMA
+        && group.len() == simd::GEN_LANES8
+        && gen_group_size::<T, M>() == simd::GEN_LANES8
+        && group
+            .iter()
+            .all(|(i, st, o)| st.phase == 2.0 && o.resid.is_none() && z.row(*i).is_some())
+    {
+        const L: usize = simd::GEN_LANES8;
+        let kmax = k0[..L].iter().copied().max().unwrap_or(0);
+        let mut rows: [&[T]; L] = [&[]; L];
+        let mut cs: [&GenConst<N, M>; L] = [&consts[0]; L];
+        for (l, (i, st, o)) in group.iter_mut().enumerate() {
+            let row = z.row(*i).unwrap_or(&[]);
+            rows[l] = &row[..(n * M).min(row.len())];
+            cs[l] = &consts[pick(*i)];
+            gen_loop::<T, N, M, FMA>(
+                cs[l],
+                st,
+                k0[l],
+                kmax,
+                |k| std::array::from_fn(|j| row[k * M + j].to_f64()),
+                o,
+            );
+        }
+        if rows.iter().any(|r| r.len() != n * M) {
+            return;
+        }
+        let mut xs: [[f64; N]; L] = [[0.0; N]; L];
+        for (l, (_, st, _)) in group.iter().enumerate() {
+            xs[l] = std::array::from_fn(|i| st.x[i]);
+        }
+        let ahead =
+            (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0).then(|| (L * z.s_track as usize, L * n));
+        let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), true);
+        // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled()` checked
+        // AVX-512F and FMA on this CPU.
+        unsafe { simd::gen_lanes8::<T, N, M>(&cs, &mut xs, kmax, n, &rows, group, ahead, nt) };
+        for (l, (_, st, _)) in group.iter_mut().enumerate() {
+            st.x[..N].copy_from_slice(&xs[l]);
+        }
+        return;
+    }
+    // Otherwise in groups of `GEN_LANES` (the same tracks take the same
+    // paths whatever the group size).
+    for (grp, k0) in group.chunks_mut(GEN_LANES).zip(k0.chunks(GEN_LANES)) {
+        gen_rest::<T, N, M, FMA>(gains, consts, z, grp, k0, parallel);
+    }
+}
+
+/// [`gen_group`] after the start-up, for at most `GEN_LANES` tracks whose
+/// steady state starts at `k0[l]`.
+#[inline(always)]
+fn gen_rest<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
+    gains: &[Gains<N, M>],
+    consts: &[GenConst<N, M>],
+    z: &Measurements<'_, T>,
+    group: &mut [Job<'_, T, N>],
+    k0: &[usize],
+    parallel: bool,
+) {
+    let n = z.n_samples;
+    let pick = |i: usize| if gains.len() == 1 { 0 } else { i };
     let group_len = group.len();
     let lanes_ok = group.len() == GEN_LANES
         && group
@@ -1287,7 +1367,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
             }
             let i = *i;
             let c = &consts[pick(i)];
-            let start = if idx < GEN_LANES { k0[idx] } else { 0 };
+            let start = k0.get(idx).copied().unwrap_or(0);
             if let (Some(row), true) = (z.row(i), o.resid.is_none() && group_len < GEN_LANES) {
                 if let Some(seg_len) = gen_split_plan(c, gains[pick(i)].t, n - start) {
                     let row = &row[..(n * M).min(row.len())];
@@ -1337,7 +1417,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         gen_loop::<T, N, M, FMA>(
             cs[l],
             st,
-            k0[l],
+            k0.get(l).copied().unwrap_or(0),
             kmax,
             |k| std::array::from_fn(|j| row[k * M + j].to_f64()),
             o,
@@ -1353,7 +1433,8 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     }
     let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
         .then(|| (GEN_LANES * z.s_track as usize, GEN_LANES * n));
-    let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), false);
+    // Whole lines of f32 too (see `simd::gen_lanes4`).
+    let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), true);
     let cs: [&GenConst<N, M>; GEN_LANES] = cs;
     gen_lanes_entry::<T, N, M, FMA>(cs, &mut xs, kmax, n, rows, group, ahead, nt);
     for (l, (_, st, _)) in group.iter_mut().enumerate() {
@@ -1549,23 +1630,39 @@ fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         }
         let zrows: [&[T]; S] =
             std::array::from_fn(|j| &row[(k0 + j * ls) * M..(k0 + (j + 1) * ls) * M]);
-        let nt = streamed::<T>(N * n * std::mem::size_of::<T>(), false);
+        // Groups of 8 segments on the AVX-512 lanes where the CPU has them
+        // (16 segments either way: the same bits).
+        let gl = if FMA {
+            gen_group_size::<T, M>()
+        } else {
+            GEN_LANES
+        };
+        let nt = streamed::<T>(N * n * std::mem::size_of::<T>(), true);
         type Seg<'s, 'j, T, const N: usize> =
             (usize, (&'s mut [Job<'j, T, N>], &'s mut [[f64; N]]));
         let run = |(gi, (grp, xs)): Seg<'_, '_, T, N>| {
+            #[cfg(target_arch = "x86_64")]
+            if gl == simd::GEN_LANES8 {
+                const L: usize = simd::GEN_LANES8;
+                let rows: [&[T]; L] = std::array::from_fn(|l| zrows[gi * L + l]);
+                // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled()`
+                // checked AVX-512F and FMA on this CPU.
+                unsafe { simd::gen_lanes8::<T, N, M>(&[c; L], xs, 0, ls, &rows, grp, None, nt) };
+                return;
+            }
             let rows: [&[T]; GEN_LANES] = std::array::from_fn(|l| zrows[gi * GEN_LANES + l]);
             let mut xl: [[f64; N]; GEN_LANES] = std::array::from_fn(|l| xs[l]);
             gen_lanes_entry::<T, N, M, FMA>([c; GEN_LANES], &mut xl, 0, ls, rows, grp, None, nt);
             xs.copy_from_slice(&xl);
         };
         if parallel {
-            jobs.par_chunks_mut(GEN_LANES)
-                .zip(ends.par_chunks_mut(GEN_LANES))
+            jobs.par_chunks_mut(gl)
+                .zip(ends.par_chunks_mut(gl))
                 .enumerate()
                 .for_each(run);
         } else {
-            jobs.chunks_mut(GEN_LANES)
-                .zip(ends.chunks_mut(GEN_LANES))
+            jobs.chunks_mut(gl)
+                .zip(ends.chunks_mut(gl))
                 .enumerate()
                 .for_each(run);
         }
@@ -1742,7 +1839,7 @@ pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
         out,
         resid,
         parallel,
-        GEN_LANES,
+        gen_group_size::<T, M>(),
         |group| {
             gen_group_dispatch(gains, &consts, init, z, group, parallel);
             if let Some(sm) = &smoother {

@@ -1,6 +1,8 @@
 //! Vector lanes. Alpha-beta (AVX-512): the eight tracks of an [`AB_LANES`]
-//! group in the eight `f64` slots of one register. The general kernel
-//! (AVX2): the four tracks of a [`GEN_LANES`] group (see [`gen_lanes4`]).
+//! group in the eight `f64` slots of one register. The general kernel:
+//! eight tracks per register with AVX-512 ([`gen_lanes8`], groups of
+//! [`GEN_LANES8`]), else the four tracks of a [`GEN_LANES`] group in an AVX2
+//! register ([`gen_lanes4`]).
 //!
 //! Each lane reads eight consecutive samples of its own track (one vector
 //! load), an 8 x 8 transpose turns the eight rows into eight vectors of "the
@@ -354,11 +356,11 @@ unsafe fn load4<T: 'static>(p: *const T) -> __m256d {
 }
 
 /// Store four values at `p`, narrowed to `T` (round to nearest); streamed
-/// past the caches if `nt` (`f64` only).
+/// past the caches if `nt`.
 ///
 /// # Safety
-/// `T` is `f64` or `f32`, `p..p+4` is writable and, if `nt`, aligned to 32
-/// bytes; AVX is available.
+/// `T` is `f64` or `f32`, `p..p+4` is writable and, if `nt`, aligned to 4
+/// values (32 or 16 bytes); AVX is available.
 #[inline]
 #[target_feature(enable = "avx2")]
 unsafe fn store4<T: 'static>(p: *mut T, v: __m256d, nt: bool) {
@@ -371,7 +373,12 @@ unsafe fn store4<T: 'static>(p: *mut T, v: __m256d, nt: bool) {
                 _mm256_storeu_pd(p as *mut f64, v)
             }
         } else {
-            _mm_storeu_ps(p as *mut f32, _mm256_cvtpd_ps(v))
+            let v = _mm256_cvtpd_ps(v);
+            if nt {
+                _mm_stream_ps(p as *mut f32, v)
+            } else {
+                _mm_storeu_ps(p as *mut f32, v)
+            }
         }
     }
 }
@@ -390,17 +397,21 @@ fn transpose4(r: &mut [__m256d; 4]) {
     r[3] = _mm256_permute2f128_pd::<0x31>(t1, t3);
 }
 
+/// Rows shorter than this (after the start) run the `f32` general lanes
+/// without aligning heads.
+const SHORT_F32: usize = 512;
+
 /// The four general lanes over samples `k0..n`: `rows[l]` holds lane `l`'s
 /// measurements (`n * M` values, sample-major), `group[l].2.states[i]` its
 /// outputs, `x[l]` its state (updated). Each lane first steps (scalar) to a
 /// sample where its first output row is aligned to a cache line (lanes are
 /// independent tracks, so they may be at different samples); then blocks of
-/// 8 samples: per half-block each lane loads `4 M` consecutive values, 4 x 4
-/// transposes give per-sample vectors across the lanes, the steps run in
-/// vectors (both the update `A x + K z` and the coast `Phi x` are computed,
-/// and blended per lane on "every component valid"), and transposes give
-/// the rows back, stored as whole lines (non-temporal if `nt`, for aligned
-/// `f64` rows). Each slot does exactly the scalar `gen_step` arithmetic (same
+/// one output line (8 `f64` or 16 `f32` samples): per 4 samples each lane
+/// loads `4 M` consecutive values, 4 x 4 transposes give per-sample vectors
+/// across the lanes, the steps run in vectors (the update `A x + K z`, and
+/// where some lane misses a component also the coast `Phi x`, blended per
+/// lane on "every component valid"), and transposes give the rows back,
+/// stored as whole lines (non-temporal if `nt`, for aligned rows). Each slot does exactly the scalar `gen_step` arithmetic (same
 /// FMAs, same order), so results are bit-identical to the scalar lanes.
 ///
 /// # Safety
@@ -418,34 +429,39 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     nt: bool,
 ) {
     const L: usize = GEN_LANES;
-    const B: usize = 2 * L;
+    // Samples per block: one 64-byte line of output per lane and component
+    // (8 f64 or 16 f32); `BMAX` sizes the buffers.
+    const BMAX: usize = 4 * L;
     let size = std::mem::size_of::<T>();
+    let bs = (64 / size).min(BMAX);
     let ok = gen_fits::<T>(M)
         && group.len() == L
         && rows.iter().all(|r| r.len() >= n * M)
         && group
             .iter()
             .all(|j| j.2.states.iter().all(|s| s.len() >= n))
-        && n >= k0 + 4 * B;
+        && n >= k0 + 4 * bs;
     let mut k = [k0; L];
-    if ok {
+    // Short f32 rows skip the aligning heads (up to 15 scalar samples of a
+    // short row cost more than the unaligned, regular stores).
+    let align = !(is_f32::<T>() && n.saturating_sub(k0) < SHORT_F32);
+    if ok && align {
         for l in 0..L {
             let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
             k[l] = k0 + ((64 - addr % 64) % 64) / size;
         }
-    } else {
+    } else if !ok {
         k = [n; L];
     }
     gen_scalar_steps(cs, xs, &rows, group, [k0; L], k);
     let blocks = k
         .iter()
-        .map(|&kl| n.saturating_sub(kl) / B)
+        .map(|&kl| n.saturating_sub(kl) / bs)
         .min()
         .unwrap_or(0);
     let stream: [[bool; N]; L] = std::array::from_fn(|l| {
         std::array::from_fn(|i| {
-            nt && is_f64::<T>()
-                && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
+            nt && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
         })
     });
     let v4 =
@@ -461,7 +477,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     for b in 0..blocks {
         if let Some((dz, dout)) = ahead {
             for l in 0..L {
-                let at = k[l] + b * B;
+                let at = k[l] + b * bs;
                 prefetch(rows[l].as_ptr().wrapping_add(dz + at * M));
                 if !nt {
                     for i in 0..N {
@@ -470,14 +486,14 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                 }
             }
         }
-        let mut outv = [[zero; B]; N];
-        for h in 0..2 {
-            // zs[s][c]: component c of each lane's sample k[l] + b B + h L + s.
+        let mut outv = [[zero; BMAX]; N];
+        for h in 0..bs / L {
+            // zs[s][c]: component c of each lane's sample k[l] + b bs + h L + s.
             let mut zs = [[zero; M]; L];
             for g in 0..M {
                 let mut r: [__m256d; L] = std::array::from_fn(|l| {
-                    let at = (k[l] + b * B + h * L) * M + g * L;
-                    // SAFETY: at + L <= (k[l] + (b + 1) B) M <= n M <= rows[l].len().
+                    let at = (k[l] + b * bs + h * L) * M + g * L;
+                    // SAFETY: at + L <= (k[l] + (b + 1) bs) M <= n M <= rows[l].len().
                     unsafe { load4(rows[l].as_ptr().add(at)) }
                 });
                 transpose4(&mut r);
@@ -491,6 +507,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                 for zc in zsv.iter().skip(1) {
                     valid = _mm256_and_pd(valid, _mm256_cmp_pd::<_CMP_ORD_Q>(*zc, *zc));
                 }
+                let all_valid = _mm256_movemask_pd(valid) == 0xf;
                 let xn: [__m256d; N] = std::array::from_fn(|i| {
                     let mut u = _mm256_mul_pd(kk[i][0], zsv[0]);
                     for j in 1..M {
@@ -498,6 +515,9 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                     }
                     for j in 0..N {
                         u = _mm256_fmadd_pd(a[i][j], x[j], u);
+                    }
+                    if all_valid {
+                        return u;
                     }
                     let mut p = zero;
                     for j in 0..N {
@@ -512,18 +532,16 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             }
         }
         for (i, ov) in outv.iter().enumerate() {
-            let mut lo: [__m256d; L] = std::array::from_fn(|s| ov[s]);
-            let mut hi: [__m256d; L] = std::array::from_fn(|s| ov[L + s]);
-            transpose4(&mut lo);
-            transpose4(&mut hi);
-            for l in 0..L {
-                let p = group[l].2.states[i].as_mut_ptr();
-                let at = k[l] + b * B;
-                // SAFETY: at + B <= n <= states[i].len(); streamed rows are
-                // aligned to 64 bytes at `at` (checked in `stream`).
-                unsafe {
-                    store4(p.add(at), lo[l], stream[l][i]);
-                    store4(p.add(at + L), hi[l], stream[l][i]);
+            for q in 0..bs / L {
+                let mut r: [__m256d; L] = std::array::from_fn(|s| ov[q * L + s]);
+                transpose4(&mut r);
+                for l in 0..L {
+                    let p = group[l].2.states[i].as_mut_ptr();
+                    let at = k[l] + b * bs + q * L;
+                    // SAFETY: at + L <= k[l] + (b + 1) bs <= n <= states[i].len();
+                    // streamed rows are aligned to 64 bytes at k[l] (checked
+                    // in `stream`), so to 4 values at `at`.
+                    unsafe { store4(p.add(at), r[l], stream[l][i]) };
                 }
             }
         }
@@ -539,7 +557,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             xs[l][i] = t[l];
         }
     }
-    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * B).min(n));
+    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * bs).min(n));
     gen_scalar_steps(cs, xs, &rows, group, from, [n; L]);
 }
 
@@ -577,4 +595,240 @@ fn gen_scalar_steps<T: IoFloat, const N: usize, const M: usize>(
 /// Whether [`gen_lanes4`] handles `T` and `M`.
 pub(super) fn gen_fits<T: 'static>(m: usize) -> bool {
     (is_f64::<T>() || is_f32::<T>()) && (m == 1 || m == 2)
+}
+
+// ---------------------------------------------------------------------------
+// The general kernel on AVX-512: GEN_LANES8 = 8 tracks in the 8 f64 slots of
+// a zmm register.
+// ---------------------------------------------------------------------------
+
+/// Tracks of an AVX-512 general group.
+pub(super) const GEN_LANES8: usize = 8;
+
+/// Whether the AVX-512 general lanes ([`gen_lanes8`]) run: only where
+/// [`available`] and the environment variable `ABKIT_GEN_AVX512` is set to
+/// anything but `0` (checked once). Opt-in until the kernel has been
+/// verified bit for bit on an AVX-512 machine (tests/test_filters_lanes.py,
+/// `test_general_lanes8_equal_scalar_bitwise`, switches it on in its child
+/// process); results are the same bits either way.
+pub(super) fn gen8_enabled() -> bool {
+    use std::sync::OnceLock;
+    static OK: OnceLock<bool> = OnceLock::new();
+    *OK.get_or_init(|| {
+        available() && std::env::var_os("ABKIT_GEN_AVX512").is_some_and(|v| v != "0")
+    })
+}
+
+/// The eight general lanes over samples `k0..n` (AVX-512; the contract of
+/// [`gen_lanes4`] with eight tracks): each lane first steps (scalar) to a
+/// sample where its first output row is aligned to a cache line; then blocks
+/// of one cache line of output per lane and component (8 `f64` or 16 `f32`
+/// samples): per 8 samples each lane loads `8 M` consecutive values, 8 x 8
+/// transposes give per-sample vectors across the lanes, the steps run in
+/// vectors (the coast `Phi x` only for samples where some lane misses), and
+/// 8 x 8 transposes give the rows back, stored as whole lines (non-temporal
+/// if `nt`, for aligned rows). Each slot does exactly the scalar `gen_step`
+/// arithmetic (same FMAs, same order), so results are bit-identical to the
+/// scalar lanes. `cs`, `xs`, `rows` and `group` have [`GEN_LANES8`] entries
+/// (else everything runs scalar).
+///
+/// # Safety
+/// The CPU supports AVX-512F and FMA ([`available`]).
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx512f,fma")]
+pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
+    cs: &[&GenConst<N, M>],
+    xs: &mut [[f64; N]],
+    k0: usize,
+    n: usize,
+    rows: &[&[T]],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
+    const L: usize = GEN_LANES8;
+    let size = std::mem::size_of::<T>();
+    // Samples per block: one 64-byte line of output.
+    let sb = 64 / size;
+    let ok = gen_fits::<T>(M)
+        && cs.len() == L
+        && xs.len() == L
+        && rows.len() == L
+        && group.len() == L
+        && rows.iter().all(|r| r.len() >= n * M)
+        && group
+            .iter()
+            .all(|j| j.2.states.iter().all(|s| s.len() >= n))
+        && n >= k0 + 3 * sb;
+    if !ok {
+        gen_scalar_steps8(cs, xs, rows, group, &[k0; L], &[n; L]);
+        return;
+    }
+    let mut k = [k0; L];
+    for l in 0..L {
+        let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
+        k[l] = k0 + ((64 - addr % 64) % 64) / size;
+    }
+    gen_scalar_steps8(cs, xs, rows, group, &[k0; L], &k);
+    let blocks = k
+        .iter()
+        .map(|&kl| n.saturating_sub(kl) / sb)
+        .min()
+        .unwrap_or(0);
+    let stream: [[bool; N]; L] = std::array::from_fn(|l| {
+        std::array::from_fn(|i| {
+            nt && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
+        })
+    });
+    let v8 = |f: &dyn Fn(&GenConst<N, M>) -> f64| {
+        _mm512_set_pd(
+            f(cs[7]),
+            f(cs[6]),
+            f(cs[5]),
+            f(cs[4]),
+            f(cs[3]),
+            f(cs[2]),
+            f(cs[1]),
+            f(cs[0]),
+        )
+    };
+    let a: [[__m512d; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.a[i][j])));
+    let phi: [[__m512d; N]; N] =
+        std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.phi[i][j])));
+    let kk: [[__m512d; M]; N] =
+        std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.k[i][j])));
+    let mut x: [__m512d; N] = std::array::from_fn(|i| {
+        _mm512_set_pd(
+            xs[7][i], xs[6][i], xs[5][i], xs[4][i], xs[3][i], xs[2][i], xs[1][i], xs[0][i],
+        )
+    });
+    let zero = _mm512_setzero_pd();
+    let rp: [*const T; L] = std::array::from_fn(|l| rows[l].as_ptr());
+    let op: [[*mut T; N]; L] =
+        std::array::from_fn(|l| std::array::from_fn(|i| group[l].2.states[i].as_mut_ptr()));
+    for b in 0..blocks {
+        // outv[i][h][s]: component i after sample h W + s of the block.
+        let mut outv = [[[zero; W]; 2]; N];
+        for h in 0..sb / W {
+            if let Some((dz, dout)) = ahead {
+                for l in 0..L {
+                    let at = k[l] + b * sb + h * W;
+                    for g in 0..M {
+                        prefetch(rp[l].wrapping_add(dz + at * M + g * W));
+                    }
+                    if !nt {
+                        for i in 0..N {
+                            prefetch(op[l][i].wrapping_add(dout + at));
+                        }
+                    }
+                }
+            }
+            // zs[s][c]: component c of each lane's sample k[l] + b sb + h W + s.
+            let mut zs = [[zero; M]; W];
+            for g in 0..M {
+                let mut r: [__m512d; L] = std::array::from_fn(|l| {
+                    let at = (k[l] + b * sb + h * W) * M + g * W;
+                    // SAFETY: at + W <= (k[l] + (b + 1) sb) M <= n M <= rows[l].len().
+                    unsafe { load8(rp[l].add(at)) }
+                });
+                transpose8(&mut r);
+                for (i, ri) in r.iter().enumerate() {
+                    let idx = g * W + i;
+                    zs[idx / M][idx % M] = *ri;
+                }
+            }
+            for (s, zsv) in zs.iter().enumerate() {
+                let mut valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zsv[0], zsv[0]);
+                for zc in zsv.iter().skip(1) {
+                    valid &= _mm512_cmp_pd_mask::<_CMP_ORD_Q>(*zc, *zc);
+                }
+                let xn: [__m512d; N] = std::array::from_fn(|i| {
+                    let mut u = _mm512_mul_pd(kk[i][0], zsv[0]);
+                    for j in 1..M {
+                        u = _mm512_fmadd_pd(kk[i][j], zsv[j], u);
+                    }
+                    for j in 0..N {
+                        u = _mm512_fmadd_pd(a[i][j], x[j], u);
+                    }
+                    if valid == 0xff {
+                        return u;
+                    }
+                    let mut p = zero;
+                    for j in 0..N {
+                        p = _mm512_fmadd_pd(phi[i][j], x[j], p);
+                    }
+                    _mm512_mask_blend_pd(valid, p, u)
+                });
+                x = xn;
+                for i in 0..N {
+                    outv[i][h][s] = x[i];
+                }
+            }
+            for ov in outv.iter_mut() {
+                transpose8(&mut ov[h]);
+            }
+        }
+        for (i, ov) in outv.iter().enumerate() {
+            for l in 0..L {
+                let at = k[l] + b * sb;
+                // SAFETY: at + sb <= n <= states[i].len(); streamed rows are
+                // aligned to 64 bytes at `at` (checked in `stream`, and
+                // `at - k[l]` is a whole number of lines).
+                unsafe { store_line(op[l][i].add(at), ov[0][l], ov[1][l], stream[l][i]) };
+            }
+        }
+    }
+    if nt {
+        _mm_sfence();
+    }
+    for i in 0..N {
+        let mut t = [0.0; L];
+        // SAFETY: t is a plain array of 8 f64.
+        unsafe { _mm512_storeu_pd(t.as_mut_ptr(), x[i]) };
+        for l in 0..L {
+            xs[l][i] = t[l];
+        }
+    }
+    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * sb).min(n));
+    gen_scalar_steps8(cs, xs, rows, group, &from, &[n; L]);
+}
+
+/// Scalar steps of every general lane `l` over samples `from[l]..to[l]`,
+/// the lanes interleaved (any number of lanes: the shortest of the slices).
+#[inline]
+#[target_feature(enable = "fma")]
+fn gen_scalar_steps8<T: IoFloat, const N: usize, const M: usize>(
+    cs: &[&GenConst<N, M>],
+    xs: &mut [[f64; N]],
+    rows: &[&[T]],
+    group: &mut [Job<'_, T, N>],
+    from: &[usize],
+    to: &[usize],
+) {
+    let lanes = cs
+        .len()
+        .min(xs.len())
+        .min(rows.len())
+        .min(group.len())
+        .min(from.len())
+        .min(to.len());
+    let most = (0..lanes)
+        .map(|l| to[l].saturating_sub(from[l]))
+        .max()
+        .unwrap_or(0);
+    for s in 0..most {
+        for l in 0..lanes {
+            let k = from[l] + s;
+            if k < to[l] && (k + 1) * M <= rows[l].len() {
+                let zk: [f64; M] = std::array::from_fn(|j| rows[l][k * M + j].to_f64());
+                xs[l] = gen_step::<N, M, true>(cs[l], &xs[l], &zk);
+                let o = &mut group[l].2;
+                for i in 0..N {
+                    if let Some(d) = o.states[i].get_mut(k) {
+                        *d = T::from_f64(xs[l][i]);
+                    }
+                }
+            }
+        }
+    }
 }
