@@ -30,14 +30,14 @@ use crate::{Error, Result};
 use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
+#[path = "filter_avx2.rs"]
+mod avx2;
+#[cfg(target_arch = "x86_64")]
 #[path = "filter_flat.rs"]
 mod flat;
 #[cfg(target_arch = "x86_64")]
 #[path = "filter_simd.rs"]
 mod simd;
-#[cfg(target_arch = "x86_64")]
-#[path = "filter_avx2.rs"]
-mod avx2;
 
 /// Largest state dimension of the general kernel.
 pub const MAX_STATES: usize = 6;

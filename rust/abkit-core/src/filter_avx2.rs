@@ -180,8 +180,18 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     let cs = [consts(0), consts(1)];
     let one = _mm256_set1_pd(1.0);
     // SAFETY (loads): x, v are plain arrays of 8 f64.
-    let mut xv = unsafe { [_mm256_loadu_pd(x.as_ptr()), _mm256_loadu_pd(x.as_ptr().add(V))] };
-    let mut vv = unsafe { [_mm256_loadu_pd(v.as_ptr()), _mm256_loadu_pd(v.as_ptr().add(V))] };
+    let mut xv = unsafe {
+        [
+            _mm256_loadu_pd(x.as_ptr()),
+            _mm256_loadu_pd(x.as_ptr().add(V)),
+        ]
+    };
+    let mut vv = unsafe {
+        [
+            _mm256_loadu_pd(v.as_ptr()),
+            _mm256_loadu_pd(v.as_ptr().add(V)),
+        ]
+    };
     let zero = _mm256_setzero_pd();
     for b in 0..blocks {
         // xbuf[h][l][q]: lane l's samples h W + q V .. + V of the block.

@@ -407,7 +407,11 @@ fn avx2_case<T: IoFloat>(off: usize, k0: usize, n: usize, nt: bool) {
         .collect();
     let z: Vec<T> = zf.iter().map(|&v| T::from_f64(v)).collect();
     let c: [AbConst; AB_LANES] = std::array::from_fn(|l| {
-        AbConst::new(0.2 + 0.07 * l as f64, 0.03 + 0.011 * l as f64, 0.1 + 0.3 * l as f64)
+        AbConst::new(
+            0.2 + 0.07 * l as f64,
+            0.03 + 0.011 * l as f64,
+            0.1 + 0.3 * l as f64,
+        )
     });
     let x0: [f64; AB_LANES] = std::array::from_fn(|l| 1.0 + l as f64);
     let v0: [f64; AB_LANES] = std::array::from_fn(|l| 0.5 - 0.1 * l as f64);
@@ -452,7 +456,10 @@ fn avx2_case<T: IoFloat>(off: usize, k0: usize, n: usize, nt: bool) {
             .all(|(p, q)| p.to_f64().to_bits() == q.to_f64().to_bits())
     };
     let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(p, q)| p.to_bits() == q.to_bits());
-    assert!(same(&xa, &xb) && same(&va, &vb), "state off {off} k0 {k0} n {n}");
+    assert!(
+        same(&xa, &xb) && same(&va, &vb),
+        "state off {off} k0 {k0} n {n}"
+    );
     assert!(bits(&xoa, &xob), "x off {off} k0 {k0} n {n} nt {nt}");
     assert!(bits(&voa, &vob), "v off {off} k0 {k0} n {n} nt {nt}");
 }
@@ -465,7 +472,15 @@ fn avx2_lanes_are_bit_identical_to_scalar_lanes() {
         return;
     }
     for off in 0..16 {
-        for (k0, n) in [(0, 32), (0, 33), (3, 47), (0, 256), (5, 263), (2, 300), (0, 1000)] {
+        for (k0, n) in [
+            (0, 32),
+            (0, 33),
+            (3, 47),
+            (0, 256),
+            (5, 263),
+            (2, 300),
+            (0, 1000),
+        ] {
             for nt in [false, true] {
                 avx2_case::<f64>(off, k0, n, nt);
                 avx2_case::<f32>(off, k0, n, nt);
