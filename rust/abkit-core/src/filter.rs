@@ -30,6 +30,9 @@ use crate::{Error, Result};
 use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
+#[path = "filter_avx2.rs"]
+mod avx2;
+#[cfg(target_arch = "x86_64")]
 #[path = "filter_flat.rs"]
 mod flat;
 #[cfg(target_arch = "x86_64")]
@@ -569,6 +572,11 @@ fn ab_lanes_entry<T: IoFloat, const FMA: bool>(
             unsafe { simd::ab_lanes8(c, x, v, 0, n, z, xs, vs, None, nt) };
             return;
         }
+        if FMA && simd::avx2_available() && simd::fits::<T>(0, n) {
+            // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
+            unsafe { avx2::ab_lanes8(c, x, v, 0, n, z, xs, vs, None, nt) };
+            return;
+        }
         if FMA {
             // SAFETY: FMA = true is only instantiated after `uses_fma()`
             // confirmed the CPU supports FMA.
@@ -934,10 +942,19 @@ fn ab_group<T: IoFloat, const FMA: bool>(
     let ahead = (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0)
         .then(|| (AB_LANES * z.s_track as usize, AB_LANES * n));
     #[cfg(target_arch = "x86_64")]
-    if FMA && n >= SIMD_MIN_SAMPLES && simd::available() && simd::fits::<T>(kmax, n) {
+    if FMA
+        && n >= SIMD_MIN_SAMPLES
+        && simd::fits::<T>(kmax, n)
+        && (simd::available() || simd::avx2_available())
+    {
         let nt = streamed::<T>(2 * z.n_tracks * n * std::mem::size_of::<T>(), true);
-        // SAFETY: `available()` checked AVX-512F and FMA on this CPU.
-        unsafe { simd::ab_lanes8(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead, nt) };
+        if simd::available() {
+            // SAFETY: `available()` checked AVX-512F and FMA on this CPU.
+            unsafe { simd::ab_lanes8(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead, nt) };
+        } else {
+            // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
+            unsafe { avx2::ab_lanes8(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead, nt) };
+        }
         for (l, (_, st, _)) in group.iter_mut().enumerate() {
             st.x[0] = x[l];
             st.x[1] = v[l];

@@ -385,3 +385,106 @@ fn absurd_strides_are_an_error_not_an_overflow() {
         assert!(matches!(m.validate(), Err(crate::Error::Shape(_))));
     }
 }
+
+/// The AVX2 lanes called directly (whatever the CPU would dispatch to)
+/// against the scalar lanes: bit-identical states and outputs for f64 and
+/// f32, rows at every element offset (heads of 0..15 samples), start
+/// samples k0 > 0, tails, NaN runs, per-lane gains, temporal and streamed
+/// stores.
+#[cfg(target_arch = "x86_64")]
+fn avx2_case<T: IoFloat>(off: usize, k0: usize, n: usize, nt: bool) {
+    let lanes = AB_LANES;
+    let stride = n + 19;
+    let zf: Vec<f64> = (0..lanes * stride + 64)
+        .map(|i| {
+            let h = (i.wrapping_mul(2654435761) >> 7) % 1000;
+            if h < 60 || (i % 97 > 80 && i % 97 < 86) {
+                f64::NAN
+            } else {
+                h as f64 * 0.013 + (i % stride) as f64 * 0.7
+            }
+        })
+        .collect();
+    let z: Vec<T> = zf.iter().map(|&v| T::from_f64(v)).collect();
+    let c: [AbConst; AB_LANES] = std::array::from_fn(|l| {
+        AbConst::new(
+            0.2 + 0.07 * l as f64,
+            0.03 + 0.011 * l as f64,
+            0.1 + 0.3 * l as f64,
+        )
+    });
+    let x0: [f64; AB_LANES] = std::array::from_fn(|l| 1.0 + l as f64);
+    let v0: [f64; AB_LANES] = std::array::from_fn(|l| 0.5 - 0.1 * l as f64);
+    let run = |vector: bool| {
+        let mut xo = vec![T::from_f64(-7.0); lanes * stride + 64];
+        let mut vo = vec![T::from_f64(-7.0); lanes * stride + 64];
+        let (mut x, mut v) = (x0, v0);
+        {
+            // lane l starts at element off + l * (stride + l): every alignment
+            let starts: [usize; AB_LANES] = std::array::from_fn(|l| off + l * stride + l % 3);
+            let zr: [&[T]; AB_LANES] = std::array::from_fn(|l| &z[starts[l]..starts[l] + n]);
+            let mut xr = xo.as_mut_slice();
+            let mut vr = vo.as_mut_slice();
+            let mut xs: [&mut [T]; AB_LANES] = std::array::from_fn(|_| -> &mut [T] { &mut [] });
+            let mut vs: [&mut [T]; AB_LANES] = std::array::from_fn(|_| -> &mut [T] { &mut [] });
+            let mut used = 0;
+            for l in 0..AB_LANES {
+                let (_, rx) = std::mem::take(&mut xr).split_at_mut(starts[l] - used);
+                let (a, rx) = rx.split_at_mut(n);
+                let (_, rv) = std::mem::take(&mut vr).split_at_mut(starts[l] - used);
+                let (b, rv) = rv.split_at_mut(n);
+                xs[l] = a;
+                vs[l] = b;
+                xr = rx;
+                vr = rv;
+                used = starts[l] + n;
+            }
+            if vector {
+                // SAFETY: checked by the caller (avx2_available).
+                unsafe { avx2::ab_lanes8(&c, &mut x, &mut v, k0, n, zr, xs, vs, None, nt) };
+            } else {
+                ab_lanes::<T, true>(&c, &mut x, &mut v, k0, n, zr, xs, vs, None);
+            }
+        }
+        (x, v, xo, vo)
+    };
+    let (xa, va, xoa, voa) = run(true);
+    let (xb, vb, xob, vob) = run(false);
+    let bits = |a: &[T], b: &[T]| {
+        a.iter()
+            .zip(b)
+            .all(|(p, q)| p.to_f64().to_bits() == q.to_f64().to_bits())
+    };
+    let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(p, q)| p.to_bits() == q.to_bits());
+    assert!(
+        same(&xa, &xb) && same(&va, &vb),
+        "state off {off} k0 {k0} n {n}"
+    );
+    assert!(bits(&xoa, &xob), "x off {off} k0 {k0} n {n} nt {nt}");
+    assert!(bits(&voa, &vob), "v off {off} k0 {k0} n {n} nt {nt}");
+}
+
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn avx2_lanes_are_bit_identical_to_scalar_lanes() {
+    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+        eprintln!("no AVX2+FMA on this CPU: AVX2 lanes not tested");
+        return;
+    }
+    for off in 0..16 {
+        for (k0, n) in [
+            (0, 32),
+            (0, 33),
+            (3, 47),
+            (0, 256),
+            (5, 263),
+            (2, 300),
+            (0, 1000),
+        ] {
+            for nt in [false, true] {
+                avx2_case::<f64>(off, k0, n, nt);
+                avx2_case::<f32>(off, k0, n, nt);
+            }
+        }
+    }
+}
