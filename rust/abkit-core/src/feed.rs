@@ -17,7 +17,7 @@
 //! pool when `parallel`.
 use crate::filter::{IoFloat, TrackOut, TrackState};
 use crate::irregular::GainLaw;
-use crate::ragged::{track_tv, Counts, Options, Samples, TrackFilter};
+use crate::ragged::{ab_update, track_tv, Counts, Options, Samples, TrackFilter};
 use crate::{Error, Result};
 use rayon::prelude::*;
 
@@ -300,6 +300,11 @@ fn run_column<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, cons
     } else {
         Vec::new()
     };
+    // Alpha-beta laws: a running track's plain step inline (the arithmetic
+    // of `track_tv`'s alpha-beta fast path); any other sample through
+    // `track_tv` itself.
+    let is_ab = N == 2 && M == 1 && filt.laws[0].clone().ab_gains(opts.t_nominal).is_some();
+    let max_gap = opts.max_gap.unwrap_or(f64::INFINITY);
     for (r, &code) in codes.iter().enumerate() {
         let i = code as usize;
         let tr = &mut rows[i];
@@ -314,6 +319,34 @@ fn run_column<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, cons
             &mut own[i]
         };
         let za = z.addr(r);
+        if is_ab && states[i].phase >= 2.0 {
+            let st = &mut states[i];
+            let step = match t {
+                Some(ts) => {
+                    let tk = ts.data[ts.addr(r) as usize];
+                    let dt = tk - st.t_last;
+                    (dt > 0.0 && dt <= max_gap && dt < f64::INFINITY).then_some((dt, tk))
+                }
+                None => Some((opts.t_nominal, st.t_last)),
+            };
+            let gains = step.and_then(|(dt, _)| {
+                law.ab_gains(dt)
+                    .filter(|(a, g)| a.is_finite() && g.is_finite())
+            });
+            if let (Some((dt, tk)), Some((a, g))) = (step, gains) {
+                let zk = z.data[za as usize].to_f64();
+                let (x1, v1, e) = ab_update::<FMA>(st.x[0], st.x[1], dt, a, g, zk);
+                st.x[0] = x1;
+                st.x[1] = v1;
+                st.t_last = tk;
+                out[0][r] = T::from_f64(x1);
+                out[1][r] = T::from_f64(v1);
+                if let Some(res) = resid.as_deref_mut() {
+                    res[r] = T::from_f64(e);
+                }
+                continue;
+            }
+        }
         let zf = |_: usize| -> [f64; M] {
             std::array::from_fn(|c| z.data[(za + c as isize * z.s_comp) as usize].to_f64())
         };

@@ -1608,7 +1608,14 @@ pub(crate) fn track_tv<
 /// arranged as in the fixed-T kernel (two multiply-adds on the dependency
 /// chain); a NaN `z` coasts. Returns `(x', v', residual or NaN)`.
 #[inline(always)]
-fn ab_update<const FMA: bool>(x: f64, v: f64, dt: f64, a: f64, g: f64, zk: f64) -> (f64, f64, f64) {
+pub(crate) fn ab_update<const FMA: bool>(
+    x: f64,
+    v: f64,
+    dt: f64,
+    a: f64,
+    g: f64,
+    zk: f64,
+) -> (f64, f64, f64) {
     let xp = crate::filter::madd::<FMA>(dt, v, x);
     let valid = !zk.is_nan();
     let e = if valid { zk - xp } else { f64::NAN };
