@@ -189,6 +189,13 @@ def _entries() -> List[Entry]:
               # a convenience for real-time feeds: integer and bool samples are converted to float64
               override={("z_chunk", "bool"): "same", ("z_chunk", "int"): "same"}))
     add(Entry("filters.Tracker.reset", lambda: abkit.Tracker(AB).reset(), {}, {}))
+    # -- a live feed: reports of many tracks interleaved (ids are labels, not arrays of numbers)
+    add(Entry("feed.FeedTracker", lambda axes: abkit.FeedTracker(AB, axes=axes), dict(axes=2), {}))
+    add(Entry("feed.FeedTracker.update",
+              lambda z, t=TT[0]: abkit.FeedTracker(ABD).update(np.arange(np.shape(z)[0] if np.ndim(z) else 1) % 3, t, z),
+              dict(z=Z2[0], t=TT[0]), dict(z=DATA, t=TIME),
+              # like Tracker.update: integer and bool samples are converted to float64
+              override={("z", "bool"): "same", ("z", "int"): "same"}))
     # -- dask (dask's local threaded scheduler: no cluster is started) ---------------
     add(Entry("dask.run", lambda z: _dask().run(AB, _dask_array(z)).compute(), dict(z=Z2), dict(z=DATA)))
     add(Entry("dask.run[t]", lambda z, t=TT: _dask().run(ABD, _dask_array(z), t=t).compute(), dict(z=Z2, t=TT), dict(z=DATA, t=TIME)))
@@ -267,6 +274,7 @@ NO_ARRAY_INPUT = {
     "filters.FilterState.copy",
     "dask.DaskFilterResult.compute",  # computes a result's lazy arrays (keywords go to dask)
     "frame.FrameSummary.totals",
+    "feed.FeedTracker.estimate", "feed.FeedTracker.forget",  # track ids only
 }
 #: Result types: constructed by abkit, not by users (their fields are outputs).
 RESULT_TYPES = {
@@ -275,9 +283,9 @@ RESULT_TYPES = {
     "singer.SingerSteadyState", "riccati.DareSolution", "riccati.KalmanSteadyState",
     "kalman.KalmanResult", "kalman.GainSequence", "filters.FilterResult", "filters.FilterState",
     "plot.FrequencyResponse", "plot.PoleZero", "plot.GainConvergence",
-    "dask.DaskFilterResult", "frame.FrameSummary",
+    "dask.DaskFilterResult", "frame.FrameSummary", "feed.FeedResult",
 }
-SUBMODULES = ("alphabeta", "abg", "filters", "kalman", "riccati", "singer", "plot")
+SUBMODULES = ("alphabeta", "abg", "filters", "kalman", "riccati", "singer", "plot", "feed")
 
 
 def _public_callables() -> List[str]:
