@@ -320,13 +320,6 @@ def run_axes(f: "FixedGainFilter", z: Any, axes: Any, *, t: Any, offsets: Any, s
     )
 
 
-def fresh_tables(packed: np.ndarray) -> np.ndarray:
-    """Packed states of tracks that have seen no sample (no timestamps)."""
-    packed[:, T_LAST] = np.nan
-    packed[:, T_HELD] = np.nan
-    return packed
-
-
 def run_feed(
     f: "FixedGainFilter",
     zs: Any,
@@ -387,7 +380,7 @@ def run_feed(
     law, params, tn = _kernel_law(f, t is not None, "a feed needs")
     if state is None:
         packed, init_mode = f._initial_state(init, None, n_tracks)
-        state = np.ascontiguousarray(np.tile(fresh_tables(packed), (len(cols), 1)))
+        state = np.tile(packed, (len(cols), 1))  # fresh: no timestamps known
     else:
         if not isinstance(init, str):
             raise ValueError("init must be 'two-point' or 'first' when state tables are given")

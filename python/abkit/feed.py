@@ -17,7 +17,7 @@ from typing import Any, Dict, List, Optional
 import numpy as np
 
 from . import _tracks
-from .filters import FixedGainFilter, _ACCEPTED
+from .filters import _ACCEPTED, _FRESH, FixedGainFilter
 
 __all__ = ["FeedTracker", "FeedResult"]
 
@@ -193,8 +193,7 @@ class FeedTracker:
         if n_tracks <= self._cap:
             return
         cap = max(n_tracks, 2 * self._cap, 64)
-        fresh = _tracks.fresh_tables(np.tile(_tracks_fresh(), (cap, 1)))
-        new = np.tile(fresh, (self.axes, 1)).reshape(self.axes, cap, _tracks._W)
+        new = np.tile(_FRESH, (self.axes, cap, 1))  # fresh: no timestamps known
         if self._cap:
             new[:, : self._cap] = self._table_view()
         self._tables = np.ascontiguousarray(new.reshape(self.axes * cap, _tracks._W))
@@ -305,7 +304,7 @@ class FeedTracker:
         self._code = {v: c for c, v in enumerate(keep)}
         self._ids = keep
         view[:, : len(keep)] = tables
-        view[:, len(keep):] = _tracks_fresh()
+        view[:, len(keep):] = _FRESH
         self._counts[: len(keep)] = counts
         self._counts[len(keep):] = 0
 
@@ -313,9 +312,3 @@ class FeedTracker:
 def ids_at(ids: Any, r: int) -> Any:
     v = np.asarray(ids)[r]
     return v.item() if isinstance(v, np.generic) else v
-
-
-def _tracks_fresh() -> np.ndarray:
-    from .filters import _FRESH
-
-    return _FRESH
