@@ -329,6 +329,14 @@ pub fn spectral_gains(qp: f64, qv: f64, qa: f64) -> Option<[f64; 4]> {
     ok.then_some([alpha, beta, gamma, om])
 }
 
+/// The dimensionless noise `[q_p, q_v, q_a] = [sigma_p, sigma_v h^2,
+/// sigma_a h^4] / sigma_m` of the `h = 1`, `R = 1` model (unvalidated; see
+/// [`from_noise`]).
+pub fn normalised_noise(sp: f64, sv: f64, sa: f64, sm: f64, h: f64) -> [f64; 3] {
+    let h2 = h * h;
+    [sp / sm, sv / sm * h2, sa / sm * (h2 * h2)]
+}
+
 /// Limiting Kalman gains `[alpha, beta, gamma]` (paper convention) for
 /// `Q = diag(sigma_p, sigma_v, sigma_a)`, `R = sigma_m` (variances), period `h`.
 ///
@@ -353,8 +361,7 @@ pub fn from_noise(sp: f64, sv: f64, sa: f64, sm: f64, h: f64) -> Result<[f64; 3]
                 .into(),
         ));
     }
-    let h2 = h * h;
-    let (qp, qv, qa) = (sp / sm, sv / sm * h2, sa / sm * (h2 * h2));
+    let [qp, qv, qa] = normalised_noise(sp, sv, sa, sm, h);
     for (name, v) in [
         ("sigma_p/sigma_m", qp),
         ("sigma_v*h**2/sigma_m", qv),

@@ -33,6 +33,9 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::alphabeta::{kalman_alpha, kalman_uv_from_lambda};
+use crate::dd::{
+    m3_add, m3_amax, m3_eye, m3_from, m3_mul, m3_solve, m3_spd_solve, m3_sym, m3_t, Dd, M3,
+};
 use crate::{Error, Result};
 
 /// The model of one step: `x_p = phi x`, `x = x_p + k (z - H x_p)`.
@@ -446,6 +449,19 @@ pub fn rts_gain3(
     out.iter().flatten().all(|v| v.is_finite()).then_some(out)
 }
 
+/// `Phi_N` (`h = 1`).
+const PHI_N: [[f64; 3]; 3] = [[1.0, 1.0, 0.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]];
+
+/// `A = P Phi_N' M^-1` in double-double from the predicted covariance `M`
+/// (symmetric positive definite) and the filtered one `P` (symmetric), as
+/// `A' = M^-1 (Phi_N P)`; `None` if `M` is not positive definite or the
+/// result is not finite in float64.
+fn rts_gain3_dd(p: &M3, m: &M3) -> Option<[[f64; 3]; 3]> {
+    let at = m3_spd_solve(m, &m3_mul(&m3_from(&PHI_N), p))?;
+    let out: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| at[j][i].to_f64()));
+    out.iter().flatten().all(|v| v.is_finite()).then_some(out)
+}
+
 /// Normalised backward gain `A_N = P_N Phi_N^T M_N^-1` (`h = 1` units,
 /// `Phi_N = [[1, 1, 1/2], [0, 1, 1], [0, 0, 1]]`) of the steady-state
 /// Kalman alpha-beta-gamma filter with near-optimal gains `(alpha, beta,
@@ -453,21 +469,111 @@ pub fn rts_gain3(
 /// `M_N = P~ / (1 - alpha)` (Chen & Chui, Corollary (iii); see
 /// [`crate::abg::p_tilde`]) and the filtered one `P_N = (I - w H) M_N`,
 /// `w = [alpha, beta, gamma]`. The scale of `M_N` cancels in `A_N`.
+///
+/// The gains are taken as exact: `P~`, `(I - w H) P~` (which cancels as
+/// `alpha -> 1`: `p22 - beta^2`, `1 - alpha`, ...) and the solve with the
+/// nearly singular `P~` are evaluated in double-double, so the result is the
+/// backward gain of these float64 gains to about float64 precision over the
+/// whole domain (docs/abg.md, "Backward (smoother) gains"). The gain is
+/// sensitive to the gains themselves near `alpha = 1` (relative
+/// perturbations of `1 - alpha` pass through): gains that were rounded from
+/// a noise design carry that rounding, which is why the design uses
+/// [`abg_backward_from_noise`].
 pub fn abg_backward_normalised(alpha: f64, beta: f64, gamma: f64) -> Result<[[f64; 3]; 3]> {
-    let m = crate::abg::p_tilde(alpha, beta, gamma);
-    let mut ikh = nalgebra::Matrix3::<f64>::identity();
-    for (i, w) in [alpha, beta, gamma].into_iter().enumerate() {
-        ikh[(i, 0)] -= w;
-    }
-    let p = ikh * m;
-    let p = (p + p.transpose()) * 0.5;
-    let phi = nalgebra::Matrix3::new(1.0, 1.0, 0.5, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0);
-    rts_gain3(&p, &phi, &m).ok_or_else(|| {
+    let (a, b, g) = (Dd::new(alpha), Dd::new(beta), Dd::new(gamma));
+    let p22 = b * (a + b + g.scale2(0.25)) - (g * (Dd::new(2.0) + a)).scale2(0.5);
+    let p23 = g * (a + b.scale2(0.5));
+    let m: M3 = [[a, b, g], [b, p22, p23], [g, p23, g * (b + g)]];
+    let w = [a, b, g];
+    let p: M3 = std::array::from_fn(|i| std::array::from_fn(|j| m[i][j] - w[i] * m[0][j]));
+    let finite = alpha.is_finite() && beta.is_finite() && gamma.is_finite();
+    finite
+        .then(|| rts_gain3_dd(&m3_sym(&p), &m))
+        .flatten()
+        .ok_or_else(|| {
+            Error::NoSolution(format!(
+                "the gains alpha={alpha}, beta={beta}, gamma={gamma} (Chen & Chui convention) \
+                 have no positive definite steady-state covariance (Corollary (iii)): no RTS \
+                 backward gain"
+            ))
+        })
+}
+
+/// Normalised backward gain `A_N` (as [`abg_backward_normalised`]) of the
+/// steady-state Kalman filter of the noise model itself: `h = 1`,
+/// `Q = diag(qp, qv, qa)`, `R = 1` (the normalised noise of
+/// [`crate::abg::from_noise`]).
+///
+/// Computed from the noise, not from rounded gains (from which `1 - alpha`
+/// is known only to `eps / (1 - alpha)`): the predicted covariance `M` by
+/// the structure-preserving doubling algorithm in double-double
+/// arithmetic, the filtered `P = M - M e1 e1' M / (m11 + 1)` (which cancels
+/// by `1 / (1 - alpha)`) and `A_N = P Phi_N' M^-1` likewise, then rounded:
+/// accurate to a few ulps of each row's largest entry over the whole domain
+/// of the design (`tests/test_abg_backward.py`). About 10-60 doubling steps
+/// (the slower the slowest closed-loop pole, the more), computed once per
+/// distinct step and cached by the smoothers.
+pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3]> {
+    let fail = |why: &str| {
         Error::NoSolution(format!(
-            "the gains alpha={alpha}, beta={beta}, gamma={gamma} (Chen & Chui convention) have no \
-             positive definite steady-state covariance (Corollary (iii)): no RTS backward gain"
+            "no steady-state RTS backward gain for the normalised noise q_p={qp}, q_v={qv}, \
+             q_a={qa}: {why}"
         ))
-    })
+    };
+    if !(qp >= 0.0 && qv >= 0.0 && qa > 0.0 && qp.is_finite() && qv.is_finite() && qa.is_finite()) {
+        return Err(fail("q_p, q_v must be finite and >= 0, q_a finite and > 0"));
+    }
+    // X = A' X (I + G X)^-1 A + Q with A = Phi', G = e1 e1' (R = 1): X = M.
+    let eye = m3_eye();
+    let mut a = m3_t(&m3_from(&PHI_N));
+    let mut g = [[Dd::ZERO; 3]; 3];
+    g[0][0] = Dd::ONE;
+    let mut x = m3_from(&[[qp, 0.0, 0.0], [0.0, qv, 0.0], [0.0, 0.0, qa]]);
+    let mut converged = false;
+    for _ in 0..200 {
+        let w = m3_solve(&m3_add(&eye, &m3_mul(&g, &x)), &eye)
+            .ok_or_else(|| fail("singular doubling step"))?;
+        let aw = m3_mul(&a, &w);
+        let at = m3_t(&a);
+        let gn = m3_sym(&m3_add(&g, &m3_mul(&m3_mul(&aw, &g), &at)));
+        let xn = m3_sym(&m3_add(&x, &m3_mul(&at, &m3_mul(&m3_mul(&x, &w), &a))));
+        let an = m3_mul(&aw, &a);
+        let diff: M3 = std::array::from_fn(|i| std::array::from_fn(|j| xn[i][j] - x[i][j]));
+        let change = m3_amax(&diff) / m3_amax(&xn);
+        let small = m3_amax(&an);
+        a = an;
+        g = gn;
+        x = xn;
+        if !(change.is_finite() && small.is_finite()) {
+            return Err(fail("the doubling iteration over/underflowed"));
+        }
+        if change <= 1e-33 && small <= 1e-20 {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        return Err(fail("the doubling iteration did not converge"));
+    }
+    let d = x[0][0] + Dd::ONE;
+    let p: M3 = std::array::from_fn(|i| std::array::from_fn(|j| x[i][j] - x[i][0] * x[0][j] / d));
+    rts_gain3_dd(&m3_sym(&p), &x)
+        .ok_or_else(|| fail("the predicted covariance is not positive definite"))
+}
+
+/// [`abg_backward_from_noise`] for the physical noise of
+/// [`crate::abg::from_noise`] at period `h` (validated as there: the same
+/// errors, naming the parameter).
+pub fn abg_backward_design(
+    sigma_p: f64,
+    sigma_v: f64,
+    sigma_a: f64,
+    sigma_m: f64,
+    h: f64,
+) -> Result<[[f64; 3]; 3]> {
+    crate::abg::from_noise(sigma_p, sigma_v, sigma_a, sigma_m, h)?;
+    let [qp, qv, qa] = crate::abg::normalised_noise(sigma_p, sigma_v, sigma_a, sigma_m, h);
+    abg_backward_from_noise(qp, qv, qa)
 }
 
 /// Physical backward step from the normalised one: `Phi = D^-1 Phi_N D`,
@@ -486,8 +592,8 @@ fn kin3_physical(phi_n: &[[f64; 3]; 3], a_n: &[[f64; 3]; 3], dt: f64) -> Kin3Gai
 pub enum Kin3Backward {
     /// The alpha-beta-gamma design at each `dt` (`[sigma_p, sigma_v,
     /// sigma_a, sigma_m]`, as [`AbgDesign`]): the gains of
-    /// [`crate::abg::from_noise`] at `h = dt`, then
-    /// [`abg_backward_normalised`]; `Phi = phi_ca(dt)`.
+    /// [`crate::abg::from_noise`] at `h = dt` (validation), the backward
+    /// gain from the noise itself ([`abg_backward_design`]); `Phi = phi_ca(dt)`.
     AbgDesign([f64; 4]),
     /// The Singer steady state at each `dt` (as [`SingerDesign`]):
     /// `A_N = P_filt,N Phi_N^T P_pred,N^-1` of [`crate::singer::steady_state`]
@@ -508,12 +614,12 @@ pub enum Kin3Backward {
 impl Kin3Backward {
     /// `(Phi(dt), A(dt))` (uncached; see [`Kin3Cache`]).
     pub fn at(&self, dt: f64) -> Result<Kin3Gain> {
-        let phi_n = [[1.0, 1.0, 0.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]];
+        let phi_n = PHI_N;
         let out = match *self {
             Kin3Backward::Fixed(a_n) => kin3_physical(&phi_n, &a_n, dt),
             Kin3Backward::AbgDesign(noise) => {
-                let [a, b, g] = abg_gains(noise, dt)?;
-                kin3_physical(&phi_n, &abg_backward_normalised(a, b, g)?, dt)
+                let [sp, sv, sa, sm] = noise;
+                kin3_physical(&phi_n, &abg_backward_design(sp, sv, sa, sm, dt)?, dt)
             }
             Kin3Backward::Singer { tau, q, sigma_pos } => {
                 let (ss, _) = singer_steady(tau, q, sigma_pos, dt)?;

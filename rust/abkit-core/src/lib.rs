@@ -38,6 +38,7 @@
 pub mod abg;
 pub mod alphabeta;
 pub mod batch;
+mod dd;
 mod error;
 pub mod feed;
 pub mod filter;

@@ -2,6 +2,7 @@
 
 use crate::convert::rows;
 use abkit_core::abg::{self, Analysis, COLOURED_FIELDS, DECOUPLED_WIDTH, FIELDS};
+use abkit_core::irregular;
 use numpy::{PyArray2, PyReadonlyArray1};
 use pyo3::prelude::*;
 
@@ -27,6 +28,47 @@ pub(crate) fn abg_from_noise<'py>(
             Ok(())
         },
     )
+}
+
+/// Normalised (h = 1) steady-state RTS backward gain `A_N` (row-major, 9
+/// per row) of the noise design of `abg_from_noise` at period h, from the
+/// noise itself (double-double; `abkit_core::irregular::abg_backward_design`).
+#[pyfunction]
+pub(crate) fn abg_backward_gain_noise<'py>(
+    py: Python<'py>,
+    sigma_p: PyReadonlyArray1<'py, f64>,
+    sigma_v: PyReadonlyArray1<'py, f64>,
+    sigma_a: PyReadonlyArray1<'py, f64>,
+    sigma_m: PyReadonlyArray1<'py, f64>,
+    h: PyReadonlyArray1<'py, f64>,
+) -> Out<'py> {
+    rows(
+        py,
+        [sigma_p, sigma_v, sigma_a, sigma_m, h],
+        9,
+        |[p, v, a, m, h], out| {
+            let g = irregular::abg_backward_design(p, v, a, m, h)?;
+            out.copy_from_slice(g.as_flattened());
+            Ok(())
+        },
+    )
+}
+
+/// Normalised (h = 1) steady-state RTS backward gain `A_N` (row-major, 9
+/// per row) of the Kalman-equivalent model of near-optimal gains (paper
+/// convention; `abkit_core::irregular::abg_backward_normalised`).
+#[pyfunction]
+pub(crate) fn abg_backward_gain<'py>(
+    py: Python<'py>,
+    alpha: PyReadonlyArray1<'py, f64>,
+    beta: PyReadonlyArray1<'py, f64>,
+    gamma: PyReadonlyArray1<'py, f64>,
+) -> Out<'py> {
+    rows(py, [alpha, beta, gamma], 9, |[a, b, g], out| {
+        let m = irregular::abg_backward_normalised(a, b, g)?;
+        out.copy_from_slice(m.as_flattened());
+        Ok(())
+    })
 }
 
 /// Gains from the tracking index: model 0 acceleration-driven / discrete

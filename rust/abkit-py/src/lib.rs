@@ -49,8 +49,9 @@ use pyo3::prelude::*;
 mod _abkit {
     #[pymodule_export]
     use super::abg::{
-        abg_analyze, abg_coloured, abg_coloured_from_noise, abg_conditions, abg_decoupled,
-        abg_from_noise, abg_from_tracking_index, abg_jury, abg_noise_ratios,
+        abg_analyze, abg_backward_gain, abg_backward_gain_noise, abg_coloured,
+        abg_coloured_from_noise, abg_conditions, abg_decoupled, abg_from_noise,
+        abg_from_tracking_index, abg_jury, abg_noise_ratios,
     };
     #[pymodule_export]
     use super::alphabeta::{
