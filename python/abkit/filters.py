@@ -1114,30 +1114,40 @@ class AlphaBetaGammaFilter(FixedGainFilter):
         self._set_transient(transient, P0, Q, R, x0)
 
     def _default_smoother_gain(self) -> np.ndarray:
-        """Backward gain of the Kalman-equivalent model: the noise of Chen &
-        Chui's Corollary for which these gains are near-optimal
+        """Backward gain of the Kalman-equivalent model: for a
+        :meth:`from_noise` design, that of its noise at ``h = T``, computed
+        from the noise itself; for fixed gains, the noise of Chen & Chui's
+        Corollary for which these gains are near-optimal
         (:func:`abkit.abg.noise_ratios`; ValueError naming the gain if there
-        is none), with the covariances of these gains at that noise
-        (:func:`abkit.abg.analyze`)."""
+        is none), from the gains as exact. Both in double-double (docs/abg.md,
+        "Backward (smoother) gains"), physical units at ``T``."""
         from . import abg as _abg
 
-        c = ABG_CONVENTIONS[self.convention]
-        a, b, g, t = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (self.alpha, self.beta, self.gamma, self.T))
-        a, b, g, t = np.broadcast_arrays(a, b, g, t)
-        try:
-            _abg.noise_ratios(a, b, g * c, convention="chen-chui")
-        except ValueError as exc:
-            raise ValueError(
-                f"the gains have no Kalman-equivalent model ({exc}); pass Q and R (or smoother_gain) to smooth()"
-            ) from None
-        d = _abg.analyze(a, b, g * c, convention="chen-chui")
-        nn = np.zeros((a.size, 3, 3))
-        nn[:, 0, 0] = 1.0
-        nn[:, 1, 1] = 1.0 / t
-        nn[:, 2, 2] = 1.0 / (t * t)
-        p = nn @ np.asarray(d.covariance_filtered).reshape(-1, 3, 3) @ nn
-        m = nn @ np.asarray(d.covariance_predicted).reshape(-1, 3, 3) @ nn
-        return p @ np.transpose(self._phi, (0, 2, 1)) @ np.linalg.inv(m)
+        t = np.atleast_1d(np.asarray(self.T, dtype=float))
+        law = self._tv_law
+        if law is not None and law[0] == "abg-design":
+            sp, sv, sa, sm = (np.ascontiguousarray(np.broadcast_to(law[1][:, i], t.shape), dtype=np.float64) for i in range(4))
+            an = _abkit.abg_backward_gain_noise(sp, sv, sa, sm, np.ascontiguousarray(t))
+        else:
+            c = ABG_CONVENTIONS[self.convention]
+            a, b, g, t = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (self.alpha, self.beta, self.gamma, self.T))
+            a, b, g, t = np.broadcast_arrays(a, b, g, t)
+            try:
+                _abg.noise_ratios(a, b, g * c, convention="chen-chui")
+            except ValueError as exc:
+                raise ValueError(
+                    f"the gains have no Kalman-equivalent model ({exc}); pass Q and R (or smoother_gain) to smooth()"
+                ) from None
+            try:
+                an = _abkit.abg_backward_gain(*(np.ascontiguousarray(v, dtype=np.float64).reshape(-1) for v in (a, b, g * c)))
+            except np.linalg.LinAlgError as exc:
+                raise ValueError(
+                    f"the gains have no Kalman-equivalent model ({exc}); pass Q and R (or smoother_gain) to smooth()"
+                ) from None
+            t = np.ascontiguousarray(t, dtype=np.float64).reshape(-1)
+        # A = D^-1 A_N D, D = diag(1, T, T^2) (x_N = D x).
+        d = np.stack([np.ones_like(t), t, t * t], axis=-1)
+        return np.asarray(an).reshape(-1, 3, 3) * d[:, None, :] / d[:, :, None]
 
 
     @classmethod

@@ -251,3 +251,59 @@ pub(crate) fn m3_spd_solve(m: &M3, b: &M3) -> Option<M3> {
     }
     x.iter().flatten().all(|v| v.is_finite()).then_some(x)
 }
+
+/// `x` with `a x = b` (`N x N`, one right-hand side) by Gaussian
+/// elimination with partial pivoting; `None` on a zero pivot or a
+/// non-finite result.
+pub(crate) fn solve_n<const N: usize>(mut a: [[Dd; N]; N], mut b: [Dd; N]) -> Option<[Dd; N]> {
+    for k in 0..N {
+        let p = (k..N).max_by(|&i, &j| a[i][k].hi.abs().total_cmp(&a[j][k].hi.abs()))?;
+        if a[p][k].hi == 0.0 {
+            return None;
+        }
+        a.swap(k, p);
+        b.swap(k, p);
+        for i in k + 1..N {
+            let f = a[i][k] / a[k][k];
+            for j in k..N {
+                a[i][j] = a[i][j] - f * a[k][j];
+            }
+            b[i] = b[i] - f * b[k];
+        }
+    }
+    let mut x = [Dd::ZERO; N];
+    for i in (0..N).rev() {
+        let mut s = b[i];
+        for l in i + 1..N {
+            s = s - a[i][l] * x[l];
+        }
+        x[i] = s / a[i][i];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// The symmetric solution of the Stein equation `X = F X F' + W`
+/// (`W` symmetric), as a 6 x 6 linear system in the upper triangle.
+pub(crate) fn stein3(f: &M3, w: &M3) -> Option<M3> {
+    const IDX: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+    let pos = |a: usize, b: usize| {
+        let (a, b) = if a <= b { (a, b) } else { (b, a) };
+        IDX.iter().position(|&e| e == (a, b)).unwrap_or(0)
+    };
+    let mut m = [[Dd::ZERO; 6]; 6];
+    let mut rhs = [Dd::ZERO; 6];
+    for (r, &(i, j)) in IDX.iter().enumerate() {
+        m[r][r] = Dd::ONE;
+        for a in 0..3 {
+            for b in 0..3 {
+                let c = pos(a, b);
+                m[r][c] = m[r][c] - f[i][a] * f[j][b];
+            }
+        }
+        rhs[r] = w[i][j];
+    }
+    let x = solve_n(m, rhs)?;
+    Some(std::array::from_fn(|i| {
+        std::array::from_fn(|j| x[pos(i, j)])
+    }))
+}

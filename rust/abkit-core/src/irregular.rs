@@ -34,7 +34,7 @@
 
 use crate::alphabeta::{kalman_alpha, kalman_uv_from_lambda};
 use crate::dd::{
-    m3_add, m3_amax, m3_eye, m3_from, m3_mul, m3_solve, m3_spd_solve, m3_sym, m3_t, Dd, M3,
+    m3_add, m3_amax, m3_eye, m3_from, m3_mul, m3_solve, m3_spd_solve, m3_sym, m3_t, stein3, Dd, M3,
 };
 use crate::{Error, Result};
 
@@ -480,15 +480,12 @@ fn rts_gain3_dd(p: &M3, m: &M3) -> Option<[[f64; 3]; 3]> {
 /// a noise design carry that rounding, which is why the design uses
 /// [`abg_backward_from_noise`].
 pub fn abg_backward_normalised(alpha: f64, beta: f64, gamma: f64) -> Result<[[f64; 3]; 3]> {
-    let (a, b, g) = (Dd::new(alpha), Dd::new(beta), Dd::new(gamma));
-    let p22 = b * (a + b + g.scale2(0.25)) - (g * (Dd::new(2.0) + a)).scale2(0.5);
-    let p23 = g * (a + b.scale2(0.5));
-    let m: M3 = [[a, b, g], [b, p22, p23], [g, p23, g * (b + g)]];
-    let w = [a, b, g];
-    let p: M3 = std::array::from_fn(|i| std::array::from_fn(|j| m[i][j] - w[i] * m[0][j]));
     let finite = alpha.is_finite() && beta.is_finite() && gamma.is_finite();
     finite
-        .then(|| rts_gain3_dd(&m3_sym(&p), &m))
+        .then(|| {
+            let a = Dd::new(alpha);
+            backward_of_gains(Dd::ONE - a, a, Dd::new(beta), Dd::new(gamma))
+        })
         .flatten()
         .ok_or_else(|| {
             Error::NoSolution(format!(
@@ -497,6 +494,26 @@ pub fn abg_backward_normalised(alpha: f64, beta: f64, gamma: f64) -> Result<[[f6
                  backward gain"
             ))
         })
+}
+
+/// `A_N` from the gains in double-double: `M = P~` (the scale `1 / (1 -
+/// alpha)` cancels), `P = (I - w H) P~` with its first row `(1 - alpha)`
+/// times that of `P~` (`om = 1 - alpha` given, not formed from `a`).
+fn backward_of_gains(om: Dd, a: Dd, b: Dd, g: Dd) -> Option<[[f64; 3]; 3]> {
+    let p22 = b * (a + b + g.scale2(0.25)) - (g * (Dd::new(2.0) + a)).scale2(0.5);
+    let p23 = g * (a + b.scale2(0.5));
+    let m: M3 = [[a, b, g], [b, p22, p23], [g, p23, g * (b + g)]];
+    let w = [a, b, g];
+    let p: M3 = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            if i == 0 {
+                om * m[0][j]
+            } else {
+                m[i][j] - w[i] * m[0][j]
+            }
+        })
+    });
+    rts_gain3_dd(&m3_sym(&p), &m)
 }
 
 /// Normalised backward gain `A_N` (as [`abg_backward_normalised`]) of the
@@ -555,9 +572,34 @@ pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3
     if !converged {
         return Err(fail("the doubling iteration did not converge"));
     }
+    // Newton (Hewer) steps from the doubling solution, which loses digits
+    // when q_a is large: with the predictor gain K = Phi w of X, the next
+    // X solves X = F X F' + Q + K K', F = Phi (I - w e1'), where
+    // (I - w e1')_11 = 1 - alpha = 1 / (x11 + 1) (no cancellation).
+    let phi = m3_from(&PHI_N);
+    for _ in 0..2 {
+        let d = x[0][0] + Dd::ONE;
+        let w: [Dd; 3] = std::array::from_fn(|i| x[i][0] / d);
+        let mut l = m3_eye();
+        l[0][0] = Dd::ONE / d;
+        for i in 1..3 {
+            l[i][0] = -w[i];
+        }
+        let f = m3_mul(&phi, &l);
+        let k: [Dd; 3] =
+            std::array::from_fn(|i| phi[i][0] * w[0] + phi[i][1] * w[1] + phi[i][2] * w[2]);
+        let mut wq: M3 = std::array::from_fn(|i| std::array::from_fn(|j| k[i] * k[j]));
+        for (i, qi) in [qp, qv, qa].into_iter().enumerate() {
+            wq[i][i] = wq[i][i] + Dd::new(qi);
+        }
+        match stein3(&f, &wq) {
+            Some(xn) if xn[0][0].hi > 0.0 => x = m3_sym(&xn),
+            _ => break,
+        }
+    }
+    // The gains of X (1 - alpha without cancellation), then A_N from them.
     let d = x[0][0] + Dd::ONE;
-    let p: M3 = std::array::from_fn(|i| std::array::from_fn(|j| x[i][j] - x[i][0] * x[0][j] / d));
-    rts_gain3_dd(&m3_sym(&p), &x)
+    backward_of_gains(Dd::ONE / d, x[0][0] / d, x[1][0] / d, x[2][0] / d)
         .ok_or_else(|| fail("the predicted covariance is not positive definite"))
 }
 

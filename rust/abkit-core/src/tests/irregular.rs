@@ -241,3 +241,146 @@ fn kin3_cache_returns_the_uncached_values() {
         .at(1e-90)
         .is_err());
 }
+
+/// Max over rows of `max_j |a_ij - r_ij| / max_j |r_ij|`.
+fn row_error(a: &[[f64; 3]; 3], r: &[[f64; 3]; 3]) -> f64 {
+    (0..3)
+        .map(|i| {
+            let d = (0..3).fold(0.0_f64, |m, j| m.max((a[i][j] - r[i][j]).abs()));
+            let s = (0..3).fold(0.0_f64, |m, j| m.max(r[i][j].abs()));
+            d / s
+        })
+        .fold(0.0, f64::max)
+}
+
+/// 50-digit references (mpmath: doubling on the filter DARE with `h = 1`,
+/// `Q = diag(q_p, q_v, q_a)`, `R = 1`, then `A = P Phi' M^-1`; the script of
+/// `tests/test_abg_backward.py`), rounded to float64.
+const BACKWARD_REF: [([f64; 3], [[f64; 3]; 3]); 5] = [
+    (
+        [1.0, 0.0, 1e12],
+        [
+            [
+                7.1553127296107e-06,
+                -3.5776663645620708e-06,
+                1.999957068251619e-12,
+            ],
+            [
+                1.999978534017812,
+                -0.9999892669729068,
+                -7.999871204538861e-12,
+            ],
+            [
+                -1.999978534017812,
+                1.9999892669729067,
+                7.999871204538861e-12,
+            ],
+        ],
+    ),
+    (
+        [0.0, 1e12, 1e-16],
+        [
+            [2.999999999978e-12, -9.99999999994e-13, -4.99999999997e-13],
+            [0.999999999997, 9.999999999939999e-13, -0.499999999999495],
+            [4.9999999999849e-29, 5.00000000000495e-29, 0.99999999999999],
+        ],
+    ),
+    (
+        [0.0, 0.0, 1e-16],
+        [
+            [0.9999999950107605, -0.9999953683986105, 0.49785020023931037],
+            [
+                9.978478844386156e-09,
+                0.999990736797221,
+                -0.9957004004786207,
+            ],
+            [
+                -9.978478844386156e-09,
+                9.263202779105655e-06,
+                0.9957004004786207,
+            ],
+        ],
+    ),
+    (
+        [1e-4, 1e-12, 1e14],
+        [
+            [
+                7.999890801727195e-07,
+                -3.999946400861678e-07,
+                1.9999967998849616e-14,
+            ],
+            [
+                1.9999983999418407,
+                -0.9999991999707203,
+                -4.000393599451911e-14,
+            ],
+            [
+                -1.9999983999418407,
+                1.9999991999707203,
+                4.000393599453911e-14,
+            ],
+        ],
+    ),
+    (
+        [0.3, 0.2, 0.1],
+        [
+            [
+                0.5582515271650439,
+                -0.28129578837121116,
+                -0.08447055382052304,
+            ],
+            [
+                0.20694681175357532,
+                0.4816517371989908,
+                -0.27131596756928716,
+            ],
+            [
+                -0.022668478556352067,
+                0.15212310193611042,
+                0.575562171441508,
+            ],
+        ],
+    ),
+];
+
+#[test]
+fn abg_backward_from_noise_matches_the_50_digit_rts_gain() {
+    // 1 - alpha down to 4e-14 (the former float64 evaluation from the
+    // rounded gains was off by ~eps / (1 - alpha) there) and slow poles.
+    for (q, r) in BACKWARD_REF {
+        let a = abg_backward_from_noise(q[0], q[1], q[2]).unwrap();
+        let e = row_error(&a, &r);
+        assert!(e <= 1e-14, "q={q:?}: row error {e:e}");
+        // The design path at h = 1, sigma_m = 2 (the same normalised noise).
+        let a2 = abg_backward_design(2.0 * q[0], 2.0 * q[1], 2.0 * q[2], 2.0, 1.0).unwrap();
+        assert!(row_error(&a2, &r) <= 1e-14, "design q={q:?}");
+    }
+}
+
+#[test]
+fn abg_backward_normalised_of_exact_gains_agrees_with_the_noise_path() {
+    // Where 1 - alpha is large and q_p, q_v are well inside the domain the
+    // rounding of the gains does not matter: the gains' Kalman-equivalent
+    // model is the noise model to ~eps (at q_p = 0 or q_v = 0 the rounded
+    // gains' model has q_p, q_v of the size of the rounding, which moves
+    // small gains' A_N by more: tests/test_abg_backward.py compares fixed
+    // gains with the 50-digit gain of their own model).
+    for q in [
+        [0.3, 0.2, 0.1],
+        [1e-2, 1e2, 1.0],
+        [1.0, 0.5, 1e-8],
+        [1e-4, 1e-2, 1e4],
+    ] {
+        let [a, b, g] = crate::abg::from_noise(q[0], q[1], q[2], 1.0, 1.0).unwrap();
+        let x = abg_backward_normalised(a, b, g).unwrap();
+        let y = abg_backward_from_noise(q[0], q[1], q[2]).unwrap();
+        let e = row_error(&x, &y);
+        assert!(e <= 1e-13, "q={q:?}: {e:e}");
+    }
+    // No steady-state covariance: an error, not a NaN gain.
+    assert!(abg_backward_normalised(0.5, 0.01, 0.5).is_err());
+    assert!(abg_backward_normalised(f64::NAN, 0.01, 0.5).is_err());
+    assert!(abg_backward_from_noise(1.0, 1.0, 0.0).is_err());
+    assert!(abg_backward_from_noise(-1.0, 1.0, 1.0).is_err());
+    assert!(abg_backward_design(1.0, 1.0, 1.0, 0.0, 1.0).is_err());
+}
