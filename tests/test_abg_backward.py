@@ -15,7 +15,8 @@ noise of Chen & Chui's Corollary (iv)-(vi), evaluated at 50 digits from the
 Error measure (docs/abg.md, "Backward (smoother) gains"): the gain in
 normalised units (``h = 1``: ``A_N = D A D^-1``, ``D = diag(1, h, h^2)``),
 per row, relative to that row's largest entry. Stated tolerance:
-``RTOL = 1e-14``. Before the double-double evaluation the design's gain
+``RTOL = 1e-13`` (measured maximum over the 1296-point sweep of
+docs/abg_backward_sweep.py: 5e-14 for the design, 2e-16 for fixed gains). Before the double-double evaluation the design's gain
 was off by up to ``eps / (1 - alpha)`` (5e-6 at ``q_a = 1e12``).
 """
 
@@ -32,7 +33,7 @@ mp = pytest.importorskip("mpmath")
 
 from test_abg_accuracy import GRID, _physical  # noqa: E402
 
-RTOL = 1e-14
+RTOL = 1e-13
 
 
 def _sda(phi, q, r):
@@ -136,20 +137,24 @@ def test_smooth_with_timestamps_uses_the_accurate_per_dt_gain(noise):
     t = np.concatenate([[0.0], np.cumsum(dts)])
     z = rng.standard_normal(t.size) * 1e3 + 5.0 * t**2
     f = AlphaBetaGammaFilter.from_noise(*noise, T=1.0)
-    xf = f.run(z, t=t).states
-    xs = f.smooth(z, t=t).states
+    xf = f.run(z, t=t, init="first").states.T
+    xs = f.smooth(z, t=t, init="first").states.T
+    assert np.all(np.isfinite(xf))
     gains = []
     for dt in dts:
         an = ref_backward_noise(*noise, float(dt))
         d = np.array([1.0, dt, dt * dt])
         gains.append(an * d[None, :] / d[:, None])
     ref = _rts_loop(xf, dts, gains)
-    # Compare each state component relative to the size of its smoother correction and of the state.
+    # Each state component relative to the size of its smoother correction
+    # (plus 1 % of the state): measured <= 2e-13; the former float64 gains
+    # from the rounded gains gave 6e-12 .. 6e-10 for the first two models.
     scale = np.max(np.abs(ref - xf), axis=0) + np.max(np.abs(ref), axis=0) * 1e-2
-    np.testing.assert_array_less(np.max(np.abs(xs - ref), axis=0), 1e-11 * scale)
+    np.testing.assert_array_less(np.max(np.abs(xs - ref), axis=0), 1e-12 * scale)
 
 
 def test_fixed_gains_without_a_model_still_raise():
-    f = AlphaBetaGammaFilter(0.5, 0.01, 0.5, 1.0, convention="chen-chui")
+    f = AlphaBetaGammaFilter(0.5, 0.2, 0.001, 1.0, convention="chen-chui")
+    assert not abg.analyze(0.5, 0.2, 0.001).near_optimal
     with pytest.raises(ValueError, match="Kalman-equivalent"):
         f.smoother_gain()

@@ -256,7 +256,15 @@ fn row_error(a: &[[f64; 3]; 3], r: &[[f64; 3]; 3]) -> f64 {
 /// 50-digit references (mpmath: doubling on the filter DARE with `h = 1`,
 /// `Q = diag(q_p, q_v, q_a)`, `R = 1`, then `A = P Phi' M^-1`; the script of
 /// `tests/test_abg_backward.py`), rounded to float64.
-const BACKWARD_REF: [([f64; 3], [[f64; 3]; 3]); 5] = [
+const BACKWARD_REF: [([f64; 3], [[f64; 3]; 3]); 6] = [
+    (
+        [1e12, 1e-4, 1e-16],
+        [
+            [9.99999999998e-13, -1.4037223132401918e-21, -9.90098800045732e-13],
+            [9.999999985967777e-17, 0.9999999985962825, -0.9900988702320926],
+            [-4.900989404184583e-29, 9.90098939715612e-15, 0.9999998596292488],
+        ],
+    ),
     (
         [1.0, 0.0, 1e12],
         [
@@ -350,10 +358,10 @@ fn abg_backward_from_noise_matches_the_50_digit_rts_gain() {
     for (q, r) in BACKWARD_REF {
         let a = abg_backward_from_noise(q[0], q[1], q[2]).unwrap();
         let e = row_error(&a, &r);
-        assert!(e <= 1e-14, "q={q:?}: row error {e:e}");
+        assert!(e <= 1e-13, "q={q:?}: row error {e:e}");
         // The design path at h = 1, sigma_m = 2 (the same normalised noise).
         let a2 = abg_backward_design(2.0 * q[0], 2.0 * q[1], 2.0 * q[2], 2.0, 1.0).unwrap();
-        assert!(row_error(&a2, &r) <= 1e-14, "design q={q:?}");
+        assert!(row_error(&a2, &r) <= 1e-13, "design q={q:?}");
     }
 }
 
@@ -384,3 +392,4 @@ fn abg_backward_normalised_of_exact_gains_agrees_with_the_noise_path() {
     assert!(abg_backward_from_noise(-1.0, 1.0, 1.0).is_err());
     assert!(abg_backward_design(1.0, 1.0, 1.0, 0.0, 1.0).is_err());
 }
+
