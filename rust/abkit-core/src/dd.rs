@@ -154,6 +154,7 @@ pub(crate) fn m3_amax(a: &M3) -> f64 {
 
 /// `a^-1 b` by Gaussian elimination with partial pivoting; `None` on a
 /// zero pivot or a non-finite result.
+#[allow(clippy::needless_range_loop)] // dense elimination: indices are clearer
 pub(crate) fn m3_solve(a: &M3, b: &M3) -> Option<M3> {
     let mut a = *a;
     let mut b = *b;
@@ -255,6 +256,7 @@ pub(crate) fn m3_spd_solve(m: &M3, b: &M3) -> Option<M3> {
 /// `x` with `a x = b` (`N x N`, one right-hand side) by Gaussian
 /// elimination with partial pivoting; `None` on a zero pivot or a
 /// non-finite result.
+#[allow(clippy::needless_range_loop)] // dense elimination: indices are clearer
 pub(crate) fn solve_n<const N: usize>(mut a: [[Dd; N]; N], mut b: [Dd; N]) -> Option<[Dd; N]> {
     for k in 0..N {
         let p = (k..N).max_by(|&i, &j| a[i][k].hi.abs().total_cmp(&a[j][k].hi.abs()))?;
