@@ -522,14 +522,18 @@ fn backward_of_gains(om: Dd, a: Dd, b: Dd, g: Dd) -> Option<[[f64; 3]; 3]> {
 /// [`crate::abg::from_noise`]).
 ///
 /// Computed from the noise, not from rounded gains (from which `1 - alpha`
-/// is known only to `eps / (1 - alpha)`): the predicted covariance `M` by
-/// the structure-preserving doubling algorithm in double-double
-/// arithmetic, the filtered `P = M - M e1 e1' M / (m11 + 1)` (which cancels
-/// by `1 / (1 - alpha)`) and `A_N = P Phi_N' M^-1` likewise, then rounded:
-/// accurate to a few ulps of each row's largest entry over the whole domain
-/// of the design (`tests/test_abg_backward.py`). About 10-60 doubling steps
-/// (the slower the slowest closed-loop pole, the more), computed once per
-/// distinct step and cached by the smoothers.
+/// is known only to `eps / (1 - alpha)`), in double-double arithmetic
+/// (`dd.rs`): Newton (Hewer) steps of the Riccati equation started
+/// from the float64 spectral gains of [`crate::abg::spectral_gains`] (with
+/// their `1 - alpha`), each step a Stein equation whose closed loop takes
+/// `1 - alpha` as given, until the gains settle (two or more steps); then `A_N` from
+/// those gains as in [`abg_backward_normalised`]. Where the spectral form
+/// is unavailable or Newton does not settle: the doubling algorithm in
+/// double-double plus two Newton steps. Accurate to ~1e-13 of each row's
+/// largest entry (a few ulps almost everywhere) over the whole domain of
+/// the design (`tests/test_abg_backward.py`, docs/abg.md "Backward
+/// (smoother) gains"); computed once per distinct step and cached by the
+/// smoothers.
 pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3]> {
     let fail = |why: &str| {
         Error::NoSolution(format!(
@@ -539,6 +543,33 @@ pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3
     };
     if !(qp >= 0.0 && qv >= 0.0 && qa > 0.0 && qp.is_finite() && qv.is_finite() && qa.is_finite()) {
         return Err(fail("q_p, q_v must be finite and >= 0, q_a finite and > 0"));
+    }
+    let q = [qp, qv, qa];
+    // Fast path: Newton from the float64 spectral gains (a few ulps, with
+    // 1 - alpha), accepted once the gains have settled to double-double.
+    if let Some([alpha, beta, gamma, om]) = crate::abg::spectral_gains(qp, qv, qa) {
+        let mut gains = [om, alpha, beta, gamma].map(Dd::new);
+        for step in 0..4 {
+            let Some(x) = hewer_step(&gains, q) else {
+                break;
+            };
+            let next = gains_of(&x);
+            // The first step moves the float64 gains by ~1e-16; later ones
+            // by the rounding of the Stein solve (~1e-32 times its
+            // condition number) once converged.
+            let settled = step >= 1
+                && (0..4).all(|i| {
+                    let d = (next[i] - gains[i]).hi.abs();
+                    d <= 1e-24 * next[i].hi.abs()
+                });
+            gains = next;
+            if settled {
+                if let Some(a) = backward_of_gains(gains[0], gains[1], gains[2], gains[3]) {
+                    return Ok(a);
+                }
+                break;
+            }
+        }
     }
     // X = A' X (I + G X)^-1 A + Q with A = Phi', G = e1 e1' (R = 1): X = M.
     let eye = m3_eye();
@@ -573,34 +604,48 @@ pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3
         return Err(fail("the doubling iteration did not converge"));
     }
     // Newton (Hewer) steps from the doubling solution, which loses digits
-    // when q_a is large: with the predictor gain K = Phi w of X, the next
-    // X solves X = F X F' + Q + K K', F = Phi (I - w e1'), where
-    // (I - w e1')_11 = 1 - alpha = 1 / (x11 + 1) (no cancellation).
-    let phi = m3_from(&PHI_N);
+    // when q_a is large.
+    let mut gains = gains_of(&x);
     for _ in 0..2 {
-        let d = x[0][0] + Dd::ONE;
-        let w: [Dd; 3] = std::array::from_fn(|i| x[i][0] / d);
-        let mut l = m3_eye();
-        l[0][0] = Dd::ONE / d;
-        for i in 1..3 {
-            l[i][0] = -w[i];
-        }
-        let f = m3_mul(&phi, &l);
-        let k: [Dd; 3] =
-            std::array::from_fn(|i| phi[i][0] * w[0] + phi[i][1] * w[1] + phi[i][2] * w[2]);
-        let mut wq: M3 = std::array::from_fn(|i| std::array::from_fn(|j| k[i] * k[j]));
-        for (i, qi) in [qp, qv, qa].into_iter().enumerate() {
-            wq[i][i] = wq[i][i] + Dd::new(qi);
-        }
-        match stein3(&f, &wq) {
-            Some(xn) if xn[0][0].hi > 0.0 => x = m3_sym(&xn),
-            _ => break,
+        match hewer_step(&gains, q) {
+            Some(xn) => gains = gains_of(&xn),
+            None => break,
         }
     }
-    // The gains of X (1 - alpha without cancellation), then A_N from them.
-    let d = x[0][0] + Dd::ONE;
-    backward_of_gains(Dd::ONE / d, x[0][0] / d, x[1][0] / d, x[2][0] / d)
+    backward_of_gains(gains[0], gains[1], gains[2], gains[3])
         .ok_or_else(|| fail("the predicted covariance is not positive definite"))
+}
+
+/// `[1 - alpha, alpha, beta, gamma]` of the predicted covariance `x`
+/// (`R = 1`): `x e1 / (x11 + 1)`, `1 - alpha = 1 / (x11 + 1)`.
+fn gains_of(x: &M3) -> [Dd; 4] {
+    let d = x[0][0] + Dd::ONE;
+    [Dd::ONE / d, x[0][0] / d, x[1][0] / d, x[2][0] / d]
+}
+
+/// One Newton (Hewer) step of the normalised filter Riccati equation from
+/// the filter gain `w = [alpha, beta, gamma]` (`gains = [1 - alpha, w]`):
+/// the predicted covariance of that gain, `X = F X F' + Q + K K'`,
+/// `F = Phi (I - w e1')`, `K = Phi w`, where `(I - w e1')_11 = 1 - alpha`
+/// is taken as given (no cancellation). `None` if the Stein equation is
+/// singular or the result is not a covariance.
+fn hewer_step(gains: &[Dd; 4], q: [f64; 3]) -> Option<M3> {
+    let phi = m3_from(&PHI_N);
+    let w = [gains[1], gains[2], gains[3]];
+    let mut l = m3_eye();
+    l[0][0] = gains[0];
+    for i in 1..3 {
+        l[i][0] = -w[i];
+    }
+    let f = m3_mul(&phi, &l);
+    let k: [Dd; 3] =
+        std::array::from_fn(|i| phi[i][0] * w[0] + phi[i][1] * w[1] + phi[i][2] * w[2]);
+    let mut wq: M3 = std::array::from_fn(|i| std::array::from_fn(|j| k[i] * k[j]));
+    for (i, qi) in q.into_iter().enumerate() {
+        wq[i][i] = wq[i][i] + Dd::new(qi);
+    }
+    let x = m3_sym(&stein3(&f, &wq)?);
+    (x[0][0].hi > 0.0 && x.iter().flatten().all(|v| v.is_finite())).then_some(x)
 }
 
 /// [`abg_backward_from_noise`] for the physical noise of
