@@ -571,6 +571,13 @@ pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3
             }
         }
     }
+    backward_by_doubling(q).map_err(fail)
+}
+
+/// The fallback of [`abg_backward_from_noise`]: the doubling algorithm in
+/// double-double from scratch, two Newton steps, `A_N` of the gains.
+fn backward_by_doubling(q: [f64; 3]) -> std::result::Result<[[f64; 3]; 3], &'static str> {
+    let [qp, qv, qa] = q;
     // X = A' X (I + G X)^-1 A + Q with A = Phi', G = e1 e1' (R = 1): X = M.
     let eye = m3_eye();
     let mut a = m3_t(&m3_from(&PHI_N));
@@ -579,8 +586,7 @@ pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3
     let mut x = m3_from(&[[qp, 0.0, 0.0], [0.0, qv, 0.0], [0.0, 0.0, qa]]);
     let mut converged = false;
     for _ in 0..200 {
-        let w = m3_solve(&m3_add(&eye, &m3_mul(&g, &x)), &eye)
-            .ok_or_else(|| fail("singular doubling step"))?;
+        let w = m3_solve(&m3_add(&eye, &m3_mul(&g, &x)), &eye).ok_or("singular doubling step")?;
         let aw = m3_mul(&a, &w);
         let at = m3_t(&a);
         let gn = m3_sym(&m3_add(&g, &m3_mul(&m3_mul(&aw, &g), &at)));
@@ -593,7 +599,7 @@ pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3
         g = gn;
         x = xn;
         if !(change.is_finite() && small.is_finite()) {
-            return Err(fail("the doubling iteration over/underflowed"));
+            return Err("the doubling iteration over/underflowed");
         }
         if change <= 1e-33 && small <= 1e-20 {
             converged = true;
@@ -601,7 +607,7 @@ pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3
         }
     }
     if !converged {
-        return Err(fail("the doubling iteration did not converge"));
+        return Err("the doubling iteration did not converge");
     }
     // Newton (Hewer) steps from the doubling solution, which loses digits
     // when q_a is large.
@@ -613,7 +619,7 @@ pub fn abg_backward_from_noise(qp: f64, qv: f64, qa: f64) -> Result<[[f64; 3]; 3
         }
     }
     backward_of_gains(gains[0], gains[1], gains[2], gains[3])
-        .ok_or_else(|| fail("the predicted covariance is not positive definite"))
+        .ok_or("the predicted covariance is not positive definite")
 }
 
 /// `[1 - alpha, alpha, beta, gamma]` of the predicted covariance `x`

@@ -404,3 +404,12 @@ fn abg_backward_normalised_of_exact_gains_agrees_with_the_noise_path() {
     assert!(abg_backward_from_noise(-1.0, 1.0, 1.0).is_err());
     assert!(abg_backward_design(1.0, 1.0, 1.0, 0.0, 1.0).is_err());
 }
+
+#[test]
+fn abg_backward_doubling_fallback_matches_the_50_digit_rts_gain() {
+    for (q, r) in BACKWARD_REF {
+        let a = backward_by_doubling(q).unwrap();
+        let e = row_error(&a, &r);
+        assert!(e <= 1e-13, "q={q:?}: row error {e:e}");
+    }
+}
