@@ -16,7 +16,7 @@ Error measure (docs/abg.md, "Backward (smoother) gains"): the gain in
 normalised units (``h = 1``: ``A_N = D A D^-1``, ``D = diag(1, h, h^2)``),
 per row, relative to that row's largest entry. Stated tolerance:
 ``RTOL = 1e-13`` (measured maximum over the 1296-point sweep of
-docs/abg_backward_sweep.py: 5e-14 for the design, 2e-16 for fixed gains). Before the double-double evaluation the design's gain
+docs/abg_backward_sweep.py: 6e-14 for the design, 2e-16 for fixed gains). Before the double-double evaluation the design's gain
 was off by up to ``eps / (1 - alpha)`` (5e-6 at ``q_a = 1e12``).
 """
 
