@@ -46,6 +46,8 @@ const MAXH: usize = 4;
 /// Per-step replacement of slot states at the first running sample of a
 /// started track (bit `l` of `mask[p]`: slot `l` at block sample `p`).
 struct Inject<const L: usize> {
+    /// Bit `p`: `mask[p] != 0`.
+    steps: u32,
     mask: [u32; MAXB],
     x: [[f64; L]; MAXB],
     v: [[f64; L]; MAXB],
@@ -165,6 +167,7 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L: 
         end: 0,
     }; L];
     let mut inject = Inject::<L> {
+        steps: 0,
         mask: [0; MAXB],
         x: [[0.0; L]; MAXB],
         v: [[0.0; L]; MAXB],
@@ -326,6 +329,7 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L: 
                 if s.inj < bend {
                     let p = (s.inj - pos) as usize;
                     inject.mask[p] |= 1 << l;
+                    inject.steps |= 1 << p;
                     inject.x[p][l] = s.inj_x;
                     inject.v[p][l] = s.inj_v;
                     let c = &s.inj_c;
@@ -407,25 +411,44 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L: 
                     );
                 }
             } else {
-                // The kept samples, scalar (a masked vector store is slow
-                // on some AVX2 CPUs, and these blocks are few).
-                let xr = rows_of::<V, W, R>(&xbuf, l, halves);
-                let vr = rows_of::<V, W, R>(&vbuf, l, halves);
-                for p in 0..sb {
-                    if m & (1 << p) != 0 {
-                        let g = (pos + p as isize) as usize;
-                        xs[g] = T::from_f64(xr[p]);
-                        vs[g] = T::from_f64(vr[p]);
+                // The kept samples: whole sub-blocks with plain vector
+                // stores, the others scalar (a masked vector store is slow
+                // on some AVX2 CPUs).
+                let (r, i) = (l / W, l % W);
+                let lane_bits = (1u32 << W) - 1;
+                for h in 0..halves {
+                    let bits = (m >> (h * W)) & lane_bits;
+                    if bits == 0 {
+                        continue;
+                    }
+                    let at = pos + (h * W) as isize;
+                    if bits == lane_bits && at >= 0 && at + W as isize <= len {
+                        // SAFETY: at..at+W is inside xs and vs.
+                        unsafe {
+                            xbuf[h][r][i].store::<T>(xs.as_mut_ptr().offset(at));
+                            vbuf[h][r][i].store::<T>(vs.as_mut_ptr().offset(at));
+                        }
+                        continue;
+                    }
+                    // SAFETY: the CPU has V's features (caller).
+                    let (xr, vr) = unsafe { (xbuf[h][r][i].to_lanes(), vbuf[h][r][i].to_lanes()) };
+                    for q in 0..W {
+                        if bits & (1 << q) != 0 {
+                            let g = (at + q as isize) as usize;
+                            xs[g] = T::from_f64(xr[q]);
+                            vs[g] = T::from_f64(vr[q]);
+                        }
                     }
                 }
             }
         }
         // Final states of the tracks that ended in this block.
         for &(l, p, j) in caps.iter() {
-            let xr = rows_of::<V, W, R>(&xbuf, l, halves);
-            let vr = rows_of::<V, W, R>(&vbuf, l, halves);
-            states[j].x[0] = xr[p];
-            states[j].x[1] = vr[p];
+            let (r, i) = (l / W, l % W);
+            // SAFETY: the CPU has V's features (caller).
+            let (xr, vr) = unsafe { (xbuf[p / W][r][i].to_lanes(), vbuf[p / W][r][i].to_lanes()) };
+            states[j].x[0] = xr[p % W];
+            states[j].x[1] = vr[p % W];
         }
         for l in 0..L {
             if done[l] {
@@ -465,23 +488,26 @@ unsafe fn compute<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L:
         let lane_bits = (1u32 << W) - 1;
         let mut inj = inj;
         for h in 0..halves {
-            let mut rows: [[V; W]; R] =
-                std::array::from_fn(|r| std::array::from_fn(|i| V::load(src[r * W + i].add(h * W))));
+            let mut rows: [[V; W]; R] = std::array::from_fn(|r| {
+                std::array::from_fn(|i| V::load(src[r * W + i].add(h * W)))
+            });
             for rr in rows.iter_mut() {
                 V::transpose(rr);
             }
             for j in 0..W {
                 if let Some((inject, shared)) = inj.as_mut() {
                     let p = h * W + j;
-                    let m = inject.mask[p];
-                    if m != 0 {
+                    if inject.steps & (1 << p) != 0 {
+                        let m = inject.mask[p];
                         for r in 0..R {
                             let bits = (m >> (r * W)) & lane_bits;
                             if bits == 0 {
                                 continue;
                             }
                             let mk = V::mask_bits(bits);
-                            let at = |a: &[f64; L]| V::from_lanes(&*(a.as_ptr().add(r * W) as *const [f64; W]));
+                            let at = |a: &[f64; L]| {
+                                V::from_lanes(&*(a.as_ptr().add(r * W) as *const [f64; W]))
+                            };
                             k.xv[r] = V::blend(mk, k.xv[r], at(&inject.x[p]));
                             k.vv[r] = V::blend(mk, k.vv[r], at(&inject.v[p]));
                             if !*shared {
@@ -492,6 +518,7 @@ unsafe fn compute<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L:
                             }
                         }
                         inject.mask[p] = 0;
+                        inject.steps &= !(1 << p);
                     }
                 }
                 for r in 0..R {
@@ -540,25 +567,13 @@ unsafe fn put_line<V: Vd<W>, T: 'static, const W: usize, const R: usize>(
             }
         } else {
             for h in (0..halves).step_by(2) {
-                V::put_f32_pair(buf[h][r][i], buf[h + 1][r][i], (p as *mut f32).add(h * W), nt);
+                V::put_f32_pair(
+                    buf[h][r][i],
+                    buf[h + 1][r][i],
+                    (p as *mut f32).add(h * W),
+                    nt,
+                );
             }
         }
     }
-}
-
-/// The `f64` values of slot `l` in a block (`W * halves` samples).
-#[inline(always)]
-fn rows_of<V: Vd<W>, const W: usize, const R: usize>(
-    buf: &Buf<V, W, R>,
-    l: usize,
-    halves: usize,
-) -> [f64; MAXB] {
-    let (r, i) = (l / W, l % W);
-    let mut out = [0.0; MAXB];
-    for h in 0..halves {
-        // SAFETY: reached only from the kernel, whose CPU has V's features.
-        let a = unsafe { buf[h][r][i].to_lanes() };
-        out[h * W..(h + 1) * W].copy_from_slice(&a);
-    }
-    out
 }
