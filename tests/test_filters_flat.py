@@ -1,4 +1,7 @@
-"""The flat alpha-beta vector kernel (rust/abkit-core/src/filter_flat.rs):
+"""The flat alpha-beta vector kernel (rust/abkit-core/src/filter_flat.rs on
+AVX-512 CPUs, its generic form rust/abkit-core/src/filter_flat_vec.rs with 4
+AVX2 slots on CPUs with AVX2 + FMA only; opt-in ABKIT_FLAT_AVX512=1 runs the
+generic form with 8 AVX-512 slots):
 short rows (fewer than 256 samples) of a batch, and ragged batches without
 timestamps, run as one flat sequence of back-to-back tracks whose vector
 slots cross track boundaries (scalar start-ups, masked stores, state
