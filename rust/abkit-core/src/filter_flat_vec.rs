@@ -7,8 +7,9 @@
 //! Instances:
 //! - AVX2 + FMA ([`ab_flat_avx2`]): `W = 4`, one register (4 slots). The
 //!   default on CPUs with AVX2 and FMA but without AVX-512. (Two registers,
-//!   8 slots, measured slower on an AMD EPYC (Zen 3): 16 concurrent
-//!   non-temporal output streams instead of 8.)
+//!   8 slots, `kernel::<V4, T, 4, 2, 8>`, measured no faster in `f64` and
+//!   slower in `f32` on an AMD EPYC (Zen 3): 16 concurrent non-temporal
+//!   output streams instead of 8. Half-line `f32` blocks were slower too.)
 //! - AVX-512F + FMA ([`ab_flat_avx512`]): `W = 8`, one register; only with
 //!   `ABKIT_FLAT_AVX512=1` (not yet run on an AVX-512 machine; the default
 //!   there stays the hand-written [`super::flat`]).
