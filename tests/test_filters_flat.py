@@ -1,4 +1,7 @@
-"""The flat alpha-beta vector kernel (rust/abkit-core/src/filter_flat.rs):
+"""The flat alpha-beta vector kernel (rust/abkit-core/src/filter_flat.rs on
+AVX-512 CPUs, its generic form rust/abkit-core/src/filter_flat_vec.rs with 4
+AVX2 slots on CPUs with AVX2 + FMA only; opt-in ABKIT_FLAT_AVX512=1 runs the
+generic form with 8 AVX-512 slots):
 short rows (fewer than 256 samples) of a batch, and ragged batches without
 timestamps, run as one flat sequence of back-to-back tracks whose vector
 slots cross track boundaries (scalar start-ups, masked stores, state
@@ -227,3 +230,162 @@ np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
     on, off = np.load(tmp_path / "on.npz"), np.load(tmp_path / "off.npz")
     for k in on.files:
         assert np.array_equal(on[k], off[k], equal_nan=True), k
+
+
+# ---------------------------------------------------------------------------
+# Boundary conditions of the flat kernel on every CPU it runs on (AVX-512:
+# filter_flat.rs, AVX2: filter_flat_vec.rs with 4 slots; on CPUs with
+# neither, these compare the scalar paths with each other and still hold).
+# ---------------------------------------------------------------------------
+
+
+def _ragged_lens(rng, lens, dtype, pattern):
+    off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    z = _z(rng, (int(off[-1]),), pattern, dtype)
+    return z, off
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("pattern", ["none", "random", "runs"])
+def test_ragged_tiny_tracks_every_boundary(dtype, pattern):
+    # Tracks of 0..3 samples (start-ups that end inside the same block, or
+    # never run), around a block (7..9, 15..17), and longer ones, in many
+    # orders: boundaries at every position of a block, several per block.
+    rng = np.random.default_rng(41 if dtype == np.float64 else 43)
+    lens = rng.choice([0, 1, 2, 3, 4, 5, 7, 8, 9, 15, 16, 17, 33, 100], 2500)
+    z, off = _ragged_lens(rng, lens, dtype, pattern)
+    f = AlphaBetaFilter(0.35, 0.07, 0.25)
+    r = _check(f, z, offsets=off)
+    for i in rng.choice(len(lens), 40, replace=False):
+        a, b = int(off[i]), int(off[i + 1])
+        if b > a:
+            alone = f.run(z[a:b], return_residuals=True)
+            assert np.array_equal(r.states[:, a:b], alone.states, equal_nan=True)
+            assert np.array_equal(r.state._packed[i], alone.state._packed[0], equal_nan=True)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_ragged_nan_led_all_nan_and_nan_mid_track(dtype):
+    rng = np.random.default_rng(45)
+    lens = rng.integers(0, 60, 1500)
+    z, off = _ragged_lens(rng, lens, dtype, "none")
+    for i in range(len(lens)):
+        a, b = int(off[i]), int(off[i + 1])
+        if b == a:
+            continue
+        kind = i % 5
+        if kind == 0:
+            z[a : a + int(rng.integers(1, b - a + 1))] = np.nan  # NaN-led (maybe all)
+        elif kind == 1:
+            z[a:b] = np.nan  # all-NaN
+        elif kind == 2:
+            z[a + (b - a) // 2] = np.nan  # one NaN mid-track
+        elif kind == 3:
+            z[a + 1 : b : 2] = np.nan  # every other sample (start-up spans)
+    n = len(lens)
+    per_track = AlphaBetaFilter(rng.uniform(0.05, 0.95, n), rng.uniform(0.001, 0.05, n), 0.4)
+    for f in [AlphaBetaFilter(0.5, 0.12, 1.0), per_track]:
+        for init in ["two-point", "first"]:
+            _check(f, z, offsets=off, init=init)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("shift", [0, 1, 3, 5, 7, 13])
+def test_short_rows_misaligned_buffers(dtype, shift):
+    # z and out= at element offsets: blocks follow the x output's lines,
+    # so x and v (and z) fall at different positions within their lines.
+    rng = np.random.default_rng(47 + shift)
+    ntr, n = 211, 23
+    base = _z(rng, (ntr * n + 16,), "random", dtype)
+    z = base[shift : shift + ntr * n].reshape(ntr, n)
+    f = AlphaBetaFilter(0.55, 0.2, 0.3)
+    ref = f.run(z, return_residuals=True)
+    buf = np.empty(2 * ntr * n + 16, dtype)
+    out = buf[shift : shift + 2 * ntr * n].reshape(2, ntr, n)
+    r = f.run(z, out=out)
+    assert r.states is out
+    assert np.array_equal(out, ref.states, equal_nan=True)
+    assert np.array_equal(r.state._packed, ref.state._packed, equal_nan=True)
+    # the ragged path with the same buffers
+    off = np.concatenate([[0], np.cumsum(rng.integers(0, 40, 150))]).astype(np.int64)
+    zr = base[shift : shift + int(off[-1])]
+    outr = buf[shift : shift + 2 * int(off[-1])].reshape(2, -1)
+    rr = f.run(zr, offsets=off, out=outr)
+    refr = f.run(zr, offsets=off, return_residuals=True)
+    assert np.array_equal(outr, refr.states, equal_nan=True)
+    assert np.array_equal(rr.state._packed, refr.state._packed, equal_nan=True)
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3, 5, 8])
+def test_ragged_threads_bit_identical(threads):
+    rng = np.random.default_rng(49)
+    z, off = _ragged(rng, 300, 3000, np.float64, "random")
+    f = AlphaBetaFilter(0.5, 0.1, 1.0)
+    a = f.run(z, offsets=off, threads=threads)
+    b = f.run(z, offsets=off, threads=1)
+    assert np.array_equal(a.states, b.states, equal_nan=True)
+    assert np.array_equal(a.state._packed, b.state._packed, equal_nan=True)
+
+
+@pytest.mark.parametrize("threads", [2, 5, 8])
+def test_short_rows_more_threads_bit_identical(threads):
+    rng = np.random.default_rng(51)
+    z = _z(rng, (9000, 41), "runs", np.float32)
+    f = AlphaBetaFilter(rng.uniform(0.2, 0.8, 9000), 0.05, 1.0)
+    a = f.run(z, threads=threads)
+    b = f.run(z, return_residuals=True, threads=1)
+    assert np.array_equal(a.states, b.states, equal_nan=True)
+    assert np.array_equal(a.state._packed, b.state._packed, equal_nan=True)
+
+
+_CHILD = r"""
+import sys, numpy as np
+from abkit import AlphaBetaFilter
+rng = np.random.default_rng(7)
+res = {}
+for k, dt in enumerate([np.float64, np.float32]):
+    for n in (1, 2, 3, 4, 9, 17, 100, 255):
+        z = rng.normal(size=(997, n)).cumsum(1).astype(dt)
+        z[rng.random(z.shape) < 0.15] = np.nan
+        z[::7, : max(1, n // 3)] = np.nan
+        z[::13] = np.nan
+        a = rng.uniform(0.1, 0.9, 997)
+        for g, f in enumerate([AlphaBetaFilter(0.4, 0.1, 0.5), AlphaBetaFilter(a, 0.3 * a * a, 0.2)]):
+            for init in ("two-point", "first"):
+                r = f.run(z, init=init)
+                res[f"rows{k}_{n}_{g}_{init}"] = r.states
+                res[f"rst{k}_{n}_{g}_{init}"] = r.state._packed
+    lens = rng.choice([0, 1, 2, 3, 5, 8, 16, 31, 250, 3000], 900)
+    off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    zr = rng.normal(size=int(off[-1])).cumsum().astype(dt)
+    zr[rng.random(zr.size) < 0.1] = np.nan
+    for i in range(0, 900, 11):
+        zr[off[i] : off[i + 1]] = np.nan
+    m = len(lens)
+    for g, f in enumerate([AlphaBetaFilter.from_noise(2.0, 5.0, 0.1), AlphaBetaFilter(rng.uniform(0.1, 0.9, m), 0.02, 0.3)]):
+        for thr in (1, 3):
+            r = f.run(zr, offsets=off, threads=thr)
+            res[f"ragged{k}_{g}_{thr}"] = r.states
+            res[f"state{k}_{g}_{thr}"] = r.state._packed
+        res[f"sm{k}_{g}"] = f.smooth(zr, offsets=off).states
+np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
+"""
+
+
+def test_flat_kernels_equal_scalar_lanes_bitwise_in_child_processes(tmp_path):
+    # Default (the flat kernel of this CPU), the generic kernel's AVX-512
+    # instance where the CPU has AVX-512 (opt-in ABKIT_FLAT_AVX512=1; on
+    # other CPUs the variable changes nothing) and the scalar lanes and
+    # track kernel (ABKIT_DISABLE_SIMD=1): the same bits.
+    runs = (("on", {}), ("gen", {"ABKIT_FLAT_AVX512": "1"}), ("off", {"ABKIT_DISABLE_SIMD": "1"}))
+    for tag, extra in runs:
+        e = dict(os.environ)
+        e.pop("ABKIT_DISABLE_SIMD", None)
+        e.pop("ABKIT_FLAT_AVX512", None)
+        e.update(extra)
+        subprocess.run([sys.executable, "-c", _CHILD, str(tmp_path), tag], check=True, env=e)
+    on, gen, off = (np.load(tmp_path / f"{t}.npz") for t in ("on", "gen", "off"))
+    assert len(on.files) > 100
+    for k in on.files:
+        assert np.array_equal(on[k], off[k], equal_nan=True), k
+        assert np.array_equal(gen[k], off[k], equal_nan=True), k

@@ -36,6 +36,9 @@ mod avx2;
 #[path = "filter_flat.rs"]
 mod flat;
 #[cfg(target_arch = "x86_64")]
+#[path = "filter_flat_vec.rs"]
+mod flatv;
+#[cfg(target_arch = "x86_64")]
 #[path = "filter_simd.rs"]
 mod simd;
 
@@ -1951,7 +1954,8 @@ fn ab_flat_batch<T: IoFloat>(
     let (nt_, n) = (z.n_tracks, z.n_samples);
     let total = nt_.checked_mul(n)?;
     let rows_ok = z.s_sample == 1 && (z.s_track == n as isize || nt_ == 1);
-    if !(uses_fma() && simd::available() && simd::fits::<T>(0, 32))
+    let kind = flat_kernel()?;
+    if !simd::fits::<T>(0, 32)
         || z.m != 1
         || n == 0
         || n >= SIMD_MIN_SAMPLES
@@ -2004,9 +2008,9 @@ fn ab_flat_batch<T: IoFloat>(
             ))
         };
         let zc = &zs[j0 * n..(j0 + cn) * n];
-        // SAFETY: `simd::available()` checked AVX-512F and FMA; T is f32 or
-        // f64 (`fits`).
-        unsafe { flat::ab_flat(&konst, shared, &mut start, &off, zc, xs, vs, st, nt)? };
+        // SAFETY: `flat_kernel()` checked the CPU features of `kind`; T is
+        // f32 or f64 (`fits`).
+        unsafe { run_flat(kind, &konst, shared, &mut start, &off, zc, xs, vs, st, nt)? };
         if let Some(sm) = smoother {
             for j in 0..cn {
                 let i = j0 + j;
@@ -2049,7 +2053,8 @@ pub(crate) use flat::Start as FlatStart;
 /// For [`crate::ragged`]: alpha-beta over the back-to-back tracks
 /// `off[j]..off[j+1]` of the flat `z`, `xs`, `vs` with the flat vector
 /// kernel, gains `(T, alpha, g = beta / T)` per track (or one for all).
-/// `None` where the kernel does not run (no AVX-512, another `T`).
+/// `None` where no flat kernel runs (no AVX2 or AVX-512 with FMA, another
+/// `T`, `ABKIT_DISABLE_SIMD`).
 #[cfg(target_arch = "x86_64")]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn ab_tracks_flat<T: IoFloat>(
@@ -2061,7 +2066,8 @@ pub(crate) fn ab_tracks_flat<T: IoFloat>(
     vs: &mut [T],
     states: &mut [TrackState],
 ) -> Option<Result<()>> {
-    if !(uses_fma() && simd::available() && simd::fits::<T>(0, 32)) || gains.is_empty() {
+    let kind = flat_kernel()?;
+    if !simd::fits::<T>(0, 32) || gains.is_empty() {
         return None;
     }
     let total = off.last().copied().unwrap_or(0);
@@ -2076,9 +2082,78 @@ pub(crate) fn ab_tracks_flat<T: IoFloat>(
             g2: g,
         }
     };
-    // SAFETY: `simd::available()` checked AVX-512F and FMA; T is f32 or f64
-    // (`fits`).
-    Some(unsafe { flat::ab_flat(&konst, shared, start, off, z, xs, vs, states, nt) })
+    // SAFETY: `flat_kernel()` checked the CPU features of `kind`; T is f32
+    // or f64 (`fits`).
+    Some(unsafe { run_flat(kind, &konst, shared, start, off, z, xs, vs, states, nt) })
+}
+
+/// The flat kernels (see [`flat`] and [`flatv`]).
+#[cfg(target_arch = "x86_64")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FlatKernel {
+    /// AVX-512F + FMA, [`flat::ab_flat`] (the default on AVX-512 CPUs).
+    Avx512,
+    /// AVX-512F + FMA, the generic kernel ([`flatv::ab_flat_avx512`]):
+    /// opt-in with `ABKIT_FLAT_AVX512` set to anything but `0`.
+    Avx512Generic,
+    /// AVX2 + FMA, the generic kernel ([`flatv::ab_flat_avx2`]).
+    Avx2,
+}
+
+/// The flat kernel of this CPU, `None` without one (or with
+/// `ABKIT_DISABLE_SIMD`). Checked once.
+#[cfg(target_arch = "x86_64")]
+fn flat_kernel() -> Option<FlatKernel> {
+    static K: std::sync::OnceLock<Option<FlatKernel>> = std::sync::OnceLock::new();
+    *K.get_or_init(|| {
+        let opt_in = std::env::var_os("ABKIT_FLAT_AVX512").is_some_and(|v| v != "0");
+        if !uses_fma() {
+            None
+        } else if simd::available() {
+            Some(if opt_in {
+                FlatKernel::Avx512Generic
+            } else {
+                FlatKernel::Avx512
+            })
+        } else if simd::avx2_available() {
+            Some(FlatKernel::Avx2)
+        } else {
+            None
+        }
+    })
+}
+
+/// Run the flat kernel `kind` (the contract of [`flat::ab_flat`]).
+///
+/// # Safety
+/// The CPU has the features of `kind` (as returned by [`flat_kernel`]);
+/// `T` is `f32` or `f64`.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn run_flat<T: IoFloat>(
+    kind: FlatKernel,
+    konst: &dyn Fn(usize) -> AbConst,
+    shared: bool,
+    start: &mut FlatStart<'_, T>,
+    off: &[usize],
+    z: &[T],
+    xs: &mut [T],
+    vs: &mut [T],
+    states: &mut [TrackState],
+    nt: bool,
+) -> Result<()> {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        match kind {
+            FlatKernel::Avx512 => flat::ab_flat(konst, shared, start, off, z, xs, vs, states, nt),
+            FlatKernel::Avx512Generic => {
+                flatv::ab_flat_avx512(konst, shared, start, off, z, xs, vs, states, nt)
+            }
+            FlatKernel::Avx2 => {
+                flatv::ab_flat_avx2(konst, shared, start, off, z, xs, vs, states, nt)
+            }
+        }
+    }
 }
 
 fn check_params<T>(n_params: usize, z: &Measurements<'_, T>) -> Result<()> {

@@ -53,31 +53,31 @@ struct Inject {
 
 /// Where one slot is.
 #[derive(Clone, Copy)]
-struct Slot {
+pub(super) struct Slot {
     /// First sample of the current block (64-byte aligned output).
-    pos: isize,
+    pub(super) pos: isize,
     /// Current track (index into the tracks), and the end of its region.
-    cur: usize,
-    region_end: usize,
+    pub(super) cur: usize,
+    pub(super) region_end: usize,
     /// Whether the slot has a region.
-    busy: bool,
+    pub(super) busy: bool,
     /// Samples before `skip` are not stored (start-up outputs).
-    skip: isize,
+    pub(super) skip: isize,
     /// The current track is running in the slot (its final state is read
     /// from the block rows at its end).
-    running: bool,
+    pub(super) running: bool,
     /// A started track begins running at sample `inj` (pending).
-    inj: isize,
-    inj_x: f64,
-    inj_v: f64,
-    inj_c: AbConst,
+    pub(super) inj: isize,
+    pub(super) inj_x: f64,
+    pub(super) inj_v: f64,
+    pub(super) inj_c: AbConst,
     /// End of the current track.
-    end: isize,
+    pub(super) end: isize,
 }
 
 /// Regions: runs of consecutive tracks of at least `target` samples (a
 /// longer track is a region by itself), longest first.
-fn regions(off: &[usize], target: usize) -> Vec<(usize, usize)> {
+pub(super) fn regions(off: &[usize], target: usize) -> Vec<(usize, usize)> {
     let n = off.len() - 1;
     let mut r = Vec::with_capacity(n / 8 + 1);
     let mut j0 = 0;

@@ -184,12 +184,13 @@ unsafe fn run4<T: IoFloat>(
 
 /// The vector operations of the kernel (all exactly rounded IEEE
 /// operations; `fmadd(a, b, c) = a b + c` and `fnmadd(a, b, c) = c - a b`
-/// fused).
+/// fused). Also used by the flat alpha-beta kernel
+/// (`filter_flat_vec.rs`).
 ///
 /// # Safety
 /// Every method needs the CPU features of its implementation; callers are
 /// functions compiled with them.
-trait Vd<const W: usize>: Copy {
+pub(crate) trait Vd<const W: usize>: Copy {
     type Mask: Copy;
     unsafe fn splat(x: f64) -> Self;
     unsafe fn from_lanes(a: &[f64; W]) -> Self;
@@ -218,10 +219,19 @@ trait Vd<const W: usize>: Copy {
     /// `W` values at `p`, narrowed (round to nearest).
     unsafe fn store<T: 'static>(self, p: *mut T);
     unsafe fn transpose(r: &mut [Self; W]);
+    /// The mask of the slots whose bit is set in `bits` (bit `i`: slot `i`).
+    unsafe fn mask_bits(bits: u32) -> Self::Mask;
+    /// Store the `W` values at `p` (aligned to `8 W` bytes if `nt`), past
+    /// the caches if `nt`.
+    unsafe fn put_f64(self, p: *mut f64, nt: bool);
+    /// Store the `2 W` values of `a` then `b` narrowed to `f32` (round to
+    /// nearest) at `p` (aligned to `8 W` bytes if `nt`), past the caches if
+    /// `nt`.
+    unsafe fn put_f32_pair(a: Self, b: Self, p: *mut f32, nt: bool);
 }
 
 #[derive(Clone, Copy)]
-struct V8(__m512d);
+pub(crate) struct V8(__m512d);
 
 impl Vd<8> for V8 {
     type Mask = __mmask8;
@@ -356,10 +366,39 @@ impl Vd<8> for V8 {
         r[3] = V8(_mm512_shuffle_f64x2::<0b01_00_01_00>(u3, u7));
         r[7] = V8(_mm512_shuffle_f64x2::<0b11_10_11_10>(u3, u7));
     }
+    #[inline(always)]
+    unsafe fn mask_bits(bits: u32) -> __mmask8 {
+        bits as __mmask8
+    }
+    #[inline(always)]
+    unsafe fn put_f64(self, p: *mut f64, nt: bool) {
+        // SAFETY: forwarded (8 writable f64, aligned if nt).
+        unsafe {
+            if nt {
+                _mm512_stream_pd(p, self.0)
+            } else {
+                _mm512_storeu_pd(p, self.0)
+            }
+        }
+    }
+    #[inline(always)]
+    unsafe fn put_f32_pair(a: Self, b: Self, p: *mut f32, nt: bool) {
+        let lo = _mm256_castps_pd(_mm512_cvtpd_ps(a.0));
+        let hi = _mm256_castps_pd(_mm512_cvtpd_ps(b.0));
+        let line = _mm512_castpd_ps(_mm512_insertf64x4::<1>(_mm512_castpd256_pd512(lo), hi));
+        // SAFETY: forwarded (16 writable f32, aligned if nt).
+        unsafe {
+            if nt {
+                _mm512_stream_ps(p, line)
+            } else {
+                _mm512_storeu_ps(p, line)
+            }
+        }
+    }
 }
 
 #[derive(Clone, Copy)]
-struct V4(__m256d);
+pub(crate) struct V4(__m256d);
 
 impl Vd<4> for V4 {
     /// All-ones slots where true.
@@ -476,6 +515,35 @@ impl Vd<4> for V4 {
         r[1] = V4(_mm256_permute2f128_pd::<0x20>(t1, t3));
         r[2] = V4(_mm256_permute2f128_pd::<0x31>(t0, t2));
         r[3] = V4(_mm256_permute2f128_pd::<0x31>(t1, t3));
+    }
+    #[inline(always)]
+    unsafe fn mask_bits(bits: u32) -> __m256d {
+        let b = _mm256_set_epi64x(8, 4, 2, 1);
+        let m = _mm256_and_si256(_mm256_set1_epi64x(bits as i64), b);
+        _mm256_castsi256_pd(_mm256_cmpeq_epi64(m, b))
+    }
+    #[inline(always)]
+    unsafe fn put_f64(self, p: *mut f64, nt: bool) {
+        // SAFETY: forwarded (4 writable f64, aligned if nt).
+        unsafe {
+            if nt {
+                _mm256_stream_pd(p, self.0)
+            } else {
+                _mm256_storeu_pd(p, self.0)
+            }
+        }
+    }
+    #[inline(always)]
+    unsafe fn put_f32_pair(a: Self, b: Self, p: *mut f32, nt: bool) {
+        let v = _mm256_set_m128(_mm256_cvtpd_ps(b.0), _mm256_cvtpd_ps(a.0));
+        // SAFETY: forwarded (8 writable f32, aligned if nt).
+        unsafe {
+            if nt {
+                _mm256_stream_ps(p, v)
+            } else {
+                _mm256_storeu_ps(p, v)
+            }
+        }
     }
 }
 

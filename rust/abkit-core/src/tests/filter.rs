@@ -488,3 +488,169 @@ fn avx2_lanes_are_bit_identical_to_scalar_lanes() {
         }
     }
 }
+
+/// The flat kernel's AVX2 instance (`flatv::ab_flat_avx2`) on back-to-back
+/// tracks of `lens` against each track run alone (scalar `ab_start` and
+/// `ab_loop` with FMA): bit for bit, outputs at element offset `off`
+/// (x and v at different line positions), `nt` stores or not.
+#[cfg(target_arch = "x86_64")]
+fn flat_avx2_case<T: IoFloat>(
+    lens: &[usize],
+    off: usize,
+    shared: bool,
+    init: Init,
+    given: bool,
+    nt: bool,
+) {
+    let n_tracks = lens.len();
+    let mut offs = vec![0usize];
+    for &l in lens {
+        offs.push(offs.last().copied().unwrap_or(0) + l);
+    }
+    let total = offs[n_tracks];
+    let zf: Vec<f64> = (0..total)
+        .map(|i| {
+            let h = (i.wrapping_mul(2654435761) >> 7) % 1000;
+            // random NaNs, NaN runs (NaN-led and all-NaN short tracks)
+            if h < 80 || (i % 211 > 190) {
+                f64::NAN
+            } else {
+                h as f64 * 0.013 + (i % 37) as f64 * 0.7
+            }
+        })
+        .collect();
+    let z: Vec<T> = zf.iter().map(|&v| T::from_f64(v)).collect();
+    let par = |j: usize| {
+        let j = if shared { 0 } else { j };
+        (
+            0.2 + 0.6 * ((j * 7) % 11) as f64 / 11.0,
+            0.01 + 0.1 * ((j * 3) % 5) as f64 / 5.0,
+            0.1 + ((j * 5) % 7) as f64,
+        )
+    };
+    let konst = |j: usize| {
+        let (a, b, t) = par(j);
+        AbConst::new(a, b, t)
+    };
+    let init_state = |j: usize| {
+        let mut s = TrackState::default();
+        if given {
+            s.x[0] = j as f64 * 0.5;
+            s.x[1] = -0.25;
+            s.phase = 2.0;
+        }
+        s
+    };
+    let step_init = init;
+    // Reference: each track alone.
+    let mut xr = vec![T::from_f64(-7.0); total];
+    let mut vr = vec![T::from_f64(-7.0); total];
+    let mut sr: Vec<TrackState> = (0..n_tracks).map(init_state).collect();
+    for j in 0..n_tracks {
+        let (a, e) = (offs[j], offs[j + 1]);
+        let (al, be, t) = par(j);
+        let zj = &z[a..e];
+        let mut o = TrackOut {
+            states: [&mut xr[a..e], &mut vr[a..e]],
+            resid: None,
+        };
+        let st = &mut sr[j];
+        let k0 = if st.phase >= 2.0 {
+            0
+        } else {
+            ab_start::<T>(al, be, t, step_init, st, e - a, &|k| zj[k].to_f64(), &mut o)
+        };
+        if st.phase >= 2.0 {
+            ab_loop::<T, true>(&konst(j), st, k0, e - a, |k| zj[k].to_f64(), &mut o);
+        }
+    }
+    // The kernel, outputs at an offset.
+    let mut xb = vec![T::from_f64(-7.0); total + off + 3];
+    let mut vb = vec![T::from_f64(-7.0); total + 2 * off + 5];
+    let mut sb: Vec<TrackState> = (0..n_tracks).map(init_state).collect();
+    let mut start = |j: usize, st: &mut TrackState, zr: &[T], xo: &mut [T], vo: &mut [T]| {
+        let (a, b, t) = par(j);
+        let mut o = TrackOut {
+            states: [xo, vo],
+            resid: None,
+        };
+        Ok(ab_start::<T>(
+            a,
+            b,
+            t,
+            step_init,
+            st,
+            zr.len(),
+            &|k| zr[k].to_f64(),
+            &mut o,
+        ))
+    };
+    // SAFETY: the caller checked AVX2 and FMA; T is f32 or f64.
+    unsafe {
+        flatv::ab_flat_avx2(
+            &konst,
+            shared,
+            &mut start,
+            &offs,
+            &z,
+            &mut xb[off..off + total],
+            &mut vb[2 * off + 1..2 * off + 1 + total],
+            &mut sb,
+            nt,
+        )
+    }
+    .unwrap();
+    let bits = |a: &[T], b: &[T]| {
+        a.iter()
+            .zip(b)
+            .position(|(p, q)| p.to_f64().to_bits() != q.to_f64().to_bits())
+    };
+    let what = format!("off {off} shared {shared} nt {nt} lens {}", lens.len());
+    assert_eq!(bits(&xb[off..off + total], &xr), None, "x {what}");
+    assert_eq!(
+        bits(&vb[2 * off + 1..2 * off + 1 + total], &vr),
+        None,
+        "v {what}"
+    );
+    // Untouched around the outputs.
+    assert!(xb[..off]
+        .iter()
+        .chain(&xb[off + total..])
+        .all(|v| v.to_f64() == -7.0));
+    for j in 0..n_tracks {
+        let (p, q) = (&sb[j], &sr[j]);
+        let same = (0..2).all(|i| p.x[i].to_bits() == q.x[i].to_bits())
+            && p.phase.to_bits() == q.phase.to_bits()
+            && p.since.to_bits() == q.since.to_bits();
+        assert!(same, "state of track {j} ({what})");
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn flat_avx2_kernel_is_bit_identical_to_tracks_alone() {
+    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+        eprintln!("no AVX2+FMA on this CPU: the AVX2 flat kernel not tested");
+        return;
+    }
+    // Tiny tracks (0..3), around a block, longer; and one long track.
+    let mut mixed: Vec<usize> = (0..600)
+        .map(|i| [0, 1, 2, 3, 5, 8, 9, 16, 17, 40, 100][(i * 7) % 11])
+        .collect();
+    mixed.extend([1000, 0, 2, 257]);
+    let cases: [Vec<usize>; 4] = [mixed, vec![100; 300], vec![3; 500], vec![4096]];
+    for lens in cases.iter() {
+        for off in [0, 1, 3, 7, 13] {
+            for shared in [true, false] {
+                for nt in [false, true] {
+                    flat_avx2_case::<f64>(lens, off, shared, Init::TwoPoint, false, nt);
+                    flat_avx2_case::<f32>(lens, off, shared, Init::TwoPoint, false, nt);
+                }
+            }
+        }
+        for (init, given) in [(Init::First, false), (Init::TwoPoint, true)] {
+            flat_avx2_case::<f64>(lens, 5, false, init, given, false);
+            flat_avx2_case::<f32>(lens, 9, true, init, given, true);
+        }
+    }
+}

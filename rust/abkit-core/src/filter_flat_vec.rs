@@ -1,0 +1,584 @@
+//! The flat alpha-beta kernel of [`super::flat`] (many short tracks stored
+//! back to back, slots walking *regions* of consecutive tracks in whole
+//! cache lines across the track boundaries) written once over a small
+//! vector trait ([`crate::ragged_simd::Vd`]): `W` slots per register, `R`
+//! registers (independent dependency chains), `L = R W` slots.
+//!
+//! Instances:
+//! - AVX2 + FMA ([`ab_flat_avx2`]): `W = 4`, one register (4 slots). The
+//!   default on CPUs with AVX2 and FMA but without AVX-512. (Two registers,
+//!   8 slots, `kernel::<V4, T, 4, 2, 8>`, measured no faster in `f64` and
+//!   slower in `f32` on an AMD EPYC (Zen 3): 16 concurrent non-temporal
+//!   output streams instead of 8. Half-line `f32` blocks were slower too.)
+//! - AVX-512F + FMA ([`ab_flat_avx512`]): `W = 8`, one register; only with
+//!   `ABKIT_FLAT_AVX512=1` (not yet run on an AVX-512 machine; the default
+//!   there stays the hand-written [`super::flat`]).
+//!
+//! The structure is that of [`super::flat`] (see its module docs): a block
+//! is one 64-byte line of `T` per slot (8 `f64` or 16 `f32` samples), run as
+//! sub-blocks of `W` samples (per register: `W` loads, a `W x W`
+//! transpose, `W` vector steps, transposes back); blocks in which every
+//! slot has only running samples run without bookkeeping and store whole
+//! lines (non-temporal for large outputs; AVX2: `f64` only); at a track boundary the new
+//! track's start-up runs scalar (`start`), the block's stores skip its
+//! outputs (scalar stores of the kept samples) and the slot's state (and
+//! per-track gains) are replaced by blends before its first running step;
+//! a track's final state is read from the block rows at its last sample.
+//!
+//! Every running sample is the scalar `ab_step::<true>` (the same fused
+//! operations in the same order), so each track is bit-identical to the
+//! scalar lanes and to the track run alone, whatever its slot or region.
+
+use std::arch::x86_64::*;
+
+use super::flat::{regions, Slot, Start};
+use super::simd::is_f64;
+use super::{AbConst, IoFloat, TrackState};
+use crate::ragged_simd::{Vd, V4, V8};
+use crate::Result;
+
+/// Blocks (cache lines) of a slot's z prefetched ahead.
+const PREFETCH_BLOCKS: isize = 8;
+/// Most samples in a block (16 `f32`).
+const MAXB: usize = 16;
+/// Most sub-blocks in a block (`W >= 4`).
+const MAXH: usize = 4;
+
+/// Per-step replacement of slot states at the first running sample of a
+/// started track (bit `l` of `mask[p]`: slot `l` at block sample `p`).
+struct Inject<const L: usize> {
+    /// Bit `p`: `mask[p] != 0`.
+    steps: u32,
+    mask: [u32; MAXB],
+    x: [[f64; L]; MAXB],
+    v: [[f64; L]; MAXB],
+    c: [[[f64; L]; 4]; MAXB],
+}
+
+/// The running states and constants of the slots, per register.
+struct Kern<V, const R: usize> {
+    xv: [V; R],
+    vv: [V; R],
+    ct: [V; R],
+    calpha: [V; R],
+    coma: [V; R],
+    cg2: [V; R],
+}
+
+/// Block outputs: `buf[h][r][i]` holds the `W` samples of sub-block `h` of
+/// slot `r W + i`.
+type Buf<V, const W: usize, const R: usize> = [[[V; W]; R]; MAXH];
+
+/// Alpha-beta over the tracks `off[j]..off[j+1]` (AVX2 + FMA, 4 slots):
+/// the contract of [`super::flat::ab_flat`].
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA; `T` is `f32` or `f64`.
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn ab_flat_avx2<T: IoFloat>(
+    konst: &dyn Fn(usize) -> AbConst,
+    shared: bool,
+    start: &mut Start<'_, T>,
+    off: &[usize],
+    z: &[T],
+    xs: &mut [T],
+    vs: &mut [T],
+    states: &mut [TrackState],
+    nt: bool,
+) -> Result<()> {
+    // Non-temporal stores in f64 only: in f32 (16-sample blocks, a track
+    // boundary in every few lines) regular stores measured 1.1-2x faster on
+    // an AMD EPYC (Zen 3).
+    let nt = nt && is_f64::<T>();
+    // SAFETY: forwarded (AVX2 and FMA available, T is f32 or f64).
+    unsafe { kernel::<V4, T, 4, 1, 4>(konst, shared, start, off, z, xs, vs, states, nt) }
+}
+
+/// Alpha-beta over the tracks `off[j]..off[j+1]` (AVX-512F + FMA, 8
+/// slots): the contract of [`super::flat::ab_flat`].
+///
+/// # Safety
+/// The CPU supports AVX-512F and FMA; `T` is `f32` or `f64`.
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx512f,fma")]
+pub(super) unsafe fn ab_flat_avx512<T: IoFloat>(
+    konst: &dyn Fn(usize) -> AbConst,
+    shared: bool,
+    start: &mut Start<'_, T>,
+    off: &[usize],
+    z: &[T],
+    xs: &mut [T],
+    vs: &mut [T],
+    states: &mut [TrackState],
+    nt: bool,
+) -> Result<()> {
+    // SAFETY: forwarded (AVX-512F and FMA available, T is f32 or f64).
+    unsafe { kernel::<V8, T, 8, 1, 8>(konst, shared, start, off, z, xs, vs, states, nt) }
+}
+
+/// The kernel (see the module docs).
+///
+/// # Safety
+/// The CPU has the features of `V`; `T` is `f32` or `f64`; `L == R W`,
+/// `W` is 4 or 8 and `L <= 32`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L: usize>(
+    konst: &dyn Fn(usize) -> AbConst,
+    shared: bool,
+    start: &mut Start<'_, T>,
+    off: &[usize],
+    z: &[T],
+    xs: &mut [T],
+    vs: &mut [T],
+    states: &mut [TrackState],
+    nt: bool,
+) -> Result<()> {
+    const { assert!(L == R * W && (W == 4 || W == 8) && L <= 32) };
+    let n_tracks = states.len();
+    let total = off.last().copied().unwrap_or(0);
+    if off.len() != n_tracks + 1 || z.len() < total || xs.len() < total || vs.len() < total {
+        return Err(crate::Error::Shape(
+            "flat alpha-beta: buffers do not match the offsets".into(),
+        ));
+    }
+    if n_tracks == 0 {
+        return Ok(());
+    }
+    let len = total as isize;
+    let es = std::mem::size_of::<T>();
+    let sb = 64 / es;
+    let sbi = sb as isize;
+    let halves = sb / W;
+    // Blocks are aligned to the x output's lines.
+    let mis = ((xs.as_ptr() as usize) % 64 / es) as isize;
+    let align_down = |p: isize| p - (p + mis).rem_euclid(sbi);
+    let v_aligned = (vs.as_ptr() as usize) % 64 == (xs.as_ptr() as usize) % 64;
+    let regs = regions(off, (total / 64).clamp(512, 8192));
+    let mut next_region = 0;
+    let c0 = konst(0);
+    let mut slots = [Slot {
+        pos: 0,
+        cur: 0,
+        region_end: 0,
+        busy: false,
+        skip: 0,
+        running: false,
+        inj: isize::MAX,
+        inj_x: 0.0,
+        inj_v: 0.0,
+        inj_c: c0,
+        end: 0,
+    }; L];
+    let mut inject = Inject::<L> {
+        steps: 0,
+        mask: [0; MAXB],
+        x: [[0.0; L]; MAXB],
+        v: [[0.0; L]; MAXB],
+        c: [[[0.0; L]; 4]; MAXB],
+    };
+
+    // Start track `j` (at the start of its region or at a boundary) in slot
+    // `s`.
+    macro_rules! start_track {
+        ($s:expr, $j:expr) => {{
+            let j: usize = $j;
+            let (a, e) = (off[j], off[j + 1]);
+            // The slot's next tracks' states and start-up outputs: touched
+            // once per track, too sparsely for the hardware prefetcher.
+            if let Some(ahead) = states.get(j + 4) {
+                let p = ahead as *const TrackState;
+                super::prefetch(p);
+                super::prefetch(p.wrapping_byte_add(64));
+                let g = off[j + 4];
+                _mm_prefetch::<_MM_HINT_ET0>(xs.as_ptr().wrapping_add(g) as *const i8);
+                _mm_prefetch::<_MM_HINT_ET0>(vs.as_ptr().wrapping_add(g) as *const i8);
+            }
+            let st = &mut states[j];
+            let n_run = if st.phase >= 2.0 {
+                0
+            } else {
+                start(j, st, &z[a..e], &mut xs[a..e], &mut vs[a..e])?
+            };
+            let q = a + n_run.min(e - a);
+            let sl: &mut Slot = $s;
+            sl.cur = j;
+            sl.end = e as isize;
+            sl.skip = q as isize;
+            if st.phase >= 2.0 && q < e {
+                sl.running = true;
+                sl.inj = q as isize;
+                // Two separate loads, each forwarded from the start-up's
+                // store (see `flat`).
+                // SAFETY: reads of two f64 fields of a live state.
+                unsafe {
+                    sl.inj_x = std::ptr::read_volatile(&st.x[0]);
+                    sl.inj_v = std::ptr::read_volatile(&st.x[1]);
+                }
+                sl.inj_c = if shared { c0 } else { konst(j) };
+            } else {
+                sl.running = false;
+                sl.inj = isize::MAX;
+            }
+        }};
+    }
+    // Give slot `l` its next region (or mark it idle).
+    macro_rules! refill {
+        ($l:expr) => {{
+            let l: usize = $l;
+            if next_region < regs.len() {
+                let (j0, j1) = regs[next_region];
+                next_region += 1;
+                slots[l].busy = true;
+                slots[l].region_end = j1;
+                slots[l].pos = align_down(off[j0] as isize);
+                start_track!(&mut slots[l], j0);
+            } else {
+                slots[l].busy = false;
+            }
+        }};
+    }
+    for l in 0..L {
+        refill!(l);
+    }
+    let full: u32 = if sb == 16 { 0xffff } else { 0xff };
+    // SAFETY (whole block below): the CPU has V's features (caller).
+    let zero = unsafe { V::splat(0.0) };
+    let cv = |f: f64| [unsafe { V::splat(f) }; R];
+    let mut k = Kern::<V, R> {
+        xv: [zero; R],
+        vv: [zero; R],
+        ct: cv(c0.t),
+        calpha: cv(c0.alpha),
+        coma: cv(c0.one_minus_alpha),
+        cg2: cv(c0.g2),
+    };
+    let mut xbuf: Buf<V, W, R> = [[[zero; W]; R]; MAXH];
+    let mut vbuf: Buf<V, W, R> = [[[zero; W]; R]; MAXH];
+    let mut caps: Vec<(usize, usize, usize)> = Vec::with_capacity(4 * L);
+    let mut tmp = [[T::from_f64(0.0); MAXB]; L];
+    loop {
+        if slots.iter().all(|s| !s.busy) {
+            break;
+        }
+        // Blocks in which no slot has anything but running samples, run
+        // without bookkeeping.
+        let mut n_fast = isize::MAX;
+        for s in slots.iter() {
+            let lim = (s.end - 1).min(s.inj);
+            n_fast = if s.busy && s.pos >= s.skip && lim >= s.pos + sbi {
+                n_fast.min((lim - s.pos) / sbi)
+            } else {
+                0
+            };
+            if n_fast == 0 {
+                break;
+            }
+        }
+        for _ in 0..n_fast {
+            let mut src = [std::ptr::null::<T>(); L];
+            for (l, s) in slots.iter().enumerate() {
+                // SAFETY (pointer): pos..pos+sb is inside the current track
+                // (fast blocks end before the track's last sample).
+                src[l] = unsafe { z.as_ptr().offset(s.pos) };
+                super::prefetch(src[l].wrapping_offset(PREFETCH_BLOCKS * sbi));
+            }
+            // SAFETY: every src[l] has sb readable samples.
+            unsafe { compute::<V, T, W, R, L>(&src, halves, &mut k, None, &mut xbuf, &mut vbuf) };
+            for (l, s) in slots.iter_mut().enumerate() {
+                // SAFETY: pos..pos+sb is inside xs and vs; x stores are
+                // line-aligned (blocks follow x's lines), v streamed only if
+                // aligned too.
+                unsafe {
+                    put_line::<V, T, W, R>(xs.as_mut_ptr().offset(s.pos), &xbuf, l, halves, nt);
+                    put_line::<V, T, W, R>(
+                        vs.as_mut_ptr().offset(s.pos),
+                        &vbuf,
+                        l,
+                        halves,
+                        nt && v_aligned,
+                    );
+                }
+                s.pos += sbi;
+            }
+        }
+        if n_fast > 0 {
+            continue;
+        }
+        // One block with events: masks (bit p: sample pos + p is stored),
+        // start-ups, starts of running, end-of-track captures.
+        let mut masks = [0u32; L];
+        let mut any_inj = false;
+        let mut done = [false; L];
+        caps.clear();
+        for l in 0..L {
+            let s = &mut slots[l];
+            if !s.busy {
+                continue;
+            }
+            let pos = s.pos;
+            let bend = pos + sbi;
+            // Samples in [pos, skip) are not stored.
+            let mut m = full;
+            let clear = |m: &mut u32, from: isize, to: isize| {
+                let (a, b) = (from.max(pos), to.min(bend));
+                if a < b {
+                    let bits = ((1u64 << (b - a)) - 1) << (a - pos);
+                    *m &= !(bits as u32);
+                }
+            };
+            clear(&mut m, pos, s.skip);
+            loop {
+                // A pending start of running in this block.
+                if s.inj < bend {
+                    let p = (s.inj - pos) as usize;
+                    inject.mask[p] |= 1 << l;
+                    inject.steps |= 1 << p;
+                    inject.x[p][l] = s.inj_x;
+                    inject.v[p][l] = s.inj_v;
+                    let c = &s.inj_c;
+                    inject.c[p][0][l] = c.t;
+                    inject.c[p][1][l] = c.alpha;
+                    inject.c[p][2][l] = c.one_minus_alpha;
+                    inject.c[p][3][l] = c.g2;
+                    any_inj = true;
+                    s.inj = isize::MAX;
+                }
+                if s.end > bend {
+                    break;
+                }
+                // The current track ends in this block.
+                if s.running {
+                    caps.push((l, (s.end - 1 - pos) as usize, s.cur));
+                }
+                let nxt = s.cur + 1;
+                if nxt >= s.region_end {
+                    clear(&mut m, s.end, bend);
+                    done[l] = true;
+                    break;
+                }
+                start_track!(&mut *s, nxt);
+                clear(&mut m, off[nxt] as isize, s.skip);
+            }
+            masks[l] = m;
+        }
+        let mut src = [std::ptr::null::<T>(); L];
+        for (l, s) in slots.iter().enumerate() {
+            let at = s.pos;
+            src[l] = if s.busy && at >= 0 && at + sbi <= len {
+                // SAFETY (pointer): at..at+sb is inside z.
+                unsafe { z.as_ptr().offset(at) }
+            } else {
+                // Partly outside z (or an idle slot): the samples inside.
+                let t = &mut tmp[l];
+                for p in 0..sb {
+                    let g = at + p as isize;
+                    t[p] = if s.busy && g >= 0 && g < len {
+                        z[g as usize]
+                    } else {
+                        T::from_f64(0.0)
+                    };
+                }
+                t.as_ptr()
+            };
+        }
+        let inj = if any_inj { Some(&mut inject) } else { None };
+        // SAFETY: every src[l] has sb readable samples.
+        unsafe {
+            compute::<V, T, W, R, L>(
+                &src,
+                halves,
+                &mut k,
+                inj.map(|i| (i, shared)),
+                &mut xbuf,
+                &mut vbuf,
+            )
+        };
+        for l in 0..L {
+            let s = &slots[l];
+            let m = masks[l];
+            if !s.busy || m == 0 {
+                continue;
+            }
+            let pos = s.pos;
+            let inside = pos >= 0 && pos + sbi <= len;
+            if m == full && inside {
+                // SAFETY: as in the fast blocks.
+                unsafe {
+                    put_line::<V, T, W, R>(xs.as_mut_ptr().offset(pos), &xbuf, l, halves, nt);
+                    put_line::<V, T, W, R>(
+                        vs.as_mut_ptr().offset(pos),
+                        &vbuf,
+                        l,
+                        halves,
+                        nt && v_aligned,
+                    );
+                }
+            } else {
+                // The kept samples: whole sub-blocks with plain vector
+                // stores, the others scalar (a masked vector store is slow
+                // on some AVX2 CPUs).
+                let (r, i) = (l / W, l % W);
+                let lane_bits = (1u32 << W) - 1;
+                for h in 0..halves {
+                    let bits = (m >> (h * W)) & lane_bits;
+                    if bits == 0 {
+                        continue;
+                    }
+                    let at = pos + (h * W) as isize;
+                    if bits == lane_bits && at >= 0 && at + W as isize <= len {
+                        // SAFETY: at..at+W is inside xs and vs.
+                        unsafe {
+                            xbuf[h][r][i].store::<T>(xs.as_mut_ptr().offset(at));
+                            vbuf[h][r][i].store::<T>(vs.as_mut_ptr().offset(at));
+                        }
+                        continue;
+                    }
+                    // SAFETY: the CPU has V's features (caller).
+                    let (xr, vr) = unsafe { (xbuf[h][r][i].to_lanes(), vbuf[h][r][i].to_lanes()) };
+                    for q in 0..W {
+                        if bits & (1 << q) != 0 {
+                            let g = (at + q as isize) as usize;
+                            xs[g] = T::from_f64(xr[q]);
+                            vs[g] = T::from_f64(vr[q]);
+                        }
+                    }
+                }
+            }
+        }
+        // Final states of the tracks that ended in this block.
+        for &(l, p, j) in caps.iter() {
+            let (r, i) = (l / W, l % W);
+            // SAFETY: the CPU has V's features (caller).
+            let (xr, vr) = unsafe { (xbuf[p / W][r][i].to_lanes(), vbuf[p / W][r][i].to_lanes()) };
+            states[j].x[0] = xr[p % W];
+            states[j].x[1] = vr[p % W];
+        }
+        for l in 0..L {
+            if done[l] {
+                refill!(l);
+            } else if slots[l].busy {
+                slots[l].pos += sbi;
+            }
+        }
+    }
+    if nt {
+        _mm_sfence();
+    }
+    Ok(())
+}
+
+/// One block: `W * halves` samples of every slot from `src[l]`, per
+/// sub-block and register transposed, run (with the slot replacements of
+/// `inj`, whose masks are cleared), and transposed back into `xbuf`, `vbuf`.
+/// Per slot exactly `ab_step::<true>`.
+///
+/// # Safety
+/// The CPU has V's features; `T` is `f32` or `f64`; each `src[l]` points to
+/// `W * halves` readable samples; `halves <= MAXH`.
+#[inline(always)]
+unsafe fn compute<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L: usize>(
+    src: &[*const T; L],
+    halves: usize,
+    k: &mut Kern<V, R>,
+    inj: Option<(&mut Inject<L>, bool)>,
+    xbuf: &mut Buf<V, W, R>,
+    vbuf: &mut Buf<V, W, R>,
+) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        let zero = V::splat(0.0);
+        let one = V::splat(1.0);
+        let lane_bits = (1u32 << W) - 1;
+        let mut inj = inj;
+        for h in 0..halves {
+            let mut rows: [[V; W]; R] = std::array::from_fn(|r| {
+                std::array::from_fn(|i| V::load(src[r * W + i].add(h * W)))
+            });
+            for rr in rows.iter_mut() {
+                V::transpose(rr);
+            }
+            for j in 0..W {
+                if let Some((inject, shared)) = inj.as_mut() {
+                    let p = h * W + j;
+                    if inject.steps & (1 << p) != 0 {
+                        let m = inject.mask[p];
+                        for r in 0..R {
+                            let bits = (m >> (r * W)) & lane_bits;
+                            if bits == 0 {
+                                continue;
+                            }
+                            let mk = V::mask_bits(bits);
+                            let at = |a: &[f64; L]| {
+                                V::from_lanes(&*(a.as_ptr().add(r * W) as *const [f64; W]))
+                            };
+                            k.xv[r] = V::blend(mk, k.xv[r], at(&inject.x[p]));
+                            k.vv[r] = V::blend(mk, k.vv[r], at(&inject.v[p]));
+                            if !*shared {
+                                k.ct[r] = V::blend(mk, k.ct[r], at(&inject.c[p][0]));
+                                k.calpha[r] = V::blend(mk, k.calpha[r], at(&inject.c[p][1]));
+                                k.coma[r] = V::blend(mk, k.coma[r], at(&inject.c[p][2]));
+                                k.cg2[r] = V::blend(mk, k.cg2[r], at(&inject.c[p][3]));
+                            }
+                        }
+                        inject.mask[p] = 0;
+                        inject.steps &= !(1 << p);
+                    }
+                }
+                for r in 0..R {
+                    // ab_step::<true>.
+                    let zj = rows[r][j];
+                    let xpred = k.ct[r].fmadd(k.vv[r], k.xv[r]);
+                    let valid = zj.ord();
+                    let zz = V::blend(valid, zero, zj);
+                    let c1 = V::blend(valid, one, k.coma[r]);
+                    let g = V::blend(valid, zero, k.cg2[r]);
+                    let w = g.fmadd(zz, k.vv[r]);
+                    k.xv[r] = c1.fmadd(xpred, k.calpha[r].mul(zz));
+                    k.vv[r] = g.fnmadd(xpred, w);
+                    xbuf[h][r][j] = k.xv[r];
+                    vbuf[h][r][j] = k.vv[r];
+                }
+            }
+            for r in 0..R {
+                V::transpose(&mut xbuf[h][r]);
+                V::transpose(&mut vbuf[h][r]);
+            }
+        }
+    }
+}
+
+/// Store slot `l`'s line of a block at `p` (`f64`: one store per sub-block;
+/// `f32`: one per pair of sub-blocks, narrowed), past the caches if `nt`.
+///
+/// # Safety
+/// The CPU has V's features; `T` is `f32` or `f64`; the `W * halves`
+/// values at `p` are writable and, if `nt`, `p` is aligned to 64 bytes.
+#[inline(always)]
+unsafe fn put_line<V: Vd<W>, T: 'static, const W: usize, const R: usize>(
+    p: *mut T,
+    buf: &Buf<V, W, R>,
+    l: usize,
+    halves: usize,
+    nt: bool,
+) {
+    let (r, i) = (l / W, l % W);
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if is_f64::<T>() {
+            for h in 0..halves {
+                buf[h][r][i].put_f64((p as *mut f64).add(h * W), nt);
+            }
+        } else {
+            for h in (0..halves).step_by(2) {
+                V::put_f32_pair(
+                    buf[h][r][i],
+                    buf[h + 1][r][i],
+                    (p as *mut f32).add(h * W),
+                    nt,
+                );
+            }
+        }
+    }
+}
