@@ -695,6 +695,8 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             V::transpose(&mut vo);
             for l in 0..W {
                 xo[l].store(xp[l].add(k));
+            }
+            for l in 0..W {
                 vo[l].store(vp[l].add(k));
             }
             if RESID {
