@@ -113,6 +113,25 @@ def test_per_dt_alphabeta_gains_equal_closed_form_design():
     np.testing.assert_allclose(k[1], d.beta / dts, rtol=1e-14)
 
 
+def test_per_dt_alphabeta_gains_against_50_digit_design():
+    """The kernels' per-dt gains (one square root, one division, the rate
+    gain formed without dividing by dt) against the exact design in 50-digit
+    arithmetic, tracking index 1e-300 .. 1e300 and beyond (limit (1, 2/dt)):
+    within 1e-15 relative (a few ulp)."""
+    mpmath = pytest.importorskip("mpmath")
+    mpmath.mp.dps = 50
+    ratio = 0.1
+    dts = np.concatenate([10.0 ** np.linspace(-150, 150, 301), 10.0 ** np.random.default_rng(3).uniform(-8, 8, 200)])
+    k = _one_step_gains(AlphaBetaFilter.from_noise(ratio, 1.0, 1.0), dts)
+    for dt, a, g in zip(dts, k[0], k[1]):
+        lam = mpmath.mpf(ratio) * mpmath.mpf(dt) ** 2
+        s = mpmath.sqrt(lam * (lam + 8))
+        u, v = 4 / (lam + 4 + s), (lam + s) / (lam + 4 + s)  # v = 1 - u without cancellation
+        ea, eg = v * (1 + u), 2 * v * v / mpmath.mpf(dt)  # alpha = 1 - u^2
+        assert abs(a - ea) <= 1e-15 * ea, (dt, a, ea)
+        assert abs(g - eg) <= 1e-15 * eg, (dt, g, eg)
+
+
 def test_per_dt_abg_gains_equal_closed_form_design():
     rng = np.random.default_rng(8)
     dts = 10.0 ** rng.uniform(-2, 2, 40)

@@ -279,3 +279,25 @@ np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **out)
     for k in on.files:
         assert on[k].dtype == off[k].dtype, k
         assert np.array_equal(on[k], off[k], equal_nan=True), k
+
+
+@pytest.mark.parametrize("sw, T, lo, hi", [(1e-140, 0.1, -2, 1.5), (1e290, 1e-150, 3, 7)], ids=["tiny", "huge"])
+def test_design_lanes_at_extreme_tracking_index(sw, T, lo, hi):
+    """Tracking index lambda = (sw / sv) dt^2 far from 1: tiny (lambda
+    underflows to 0 while sqrt(lambda) does not), and 1e296 .. 1e304, where
+    the gains switch to the limit (1, 2 / dt) at 1e300 inside a block: the
+    vector slots blend it in exactly as the scalar code branches."""
+    lens = [1000, 5, 999, 640, 1001, 77, 800]
+    z, t, off = _data(21, lens, pattern="random")
+    rng = np.random.default_rng(5)
+    for i in range(len(lens)):
+        a, b = off[i], off[i + 1]
+        t[a:b] = np.cumsum(10.0 ** rng.uniform(lo, hi, b - a))
+    f = AlphaBetaFilter.from_noise(sw, 1.0, T)
+    r = f.run(z, t=t, offsets=off, return_residuals=True)
+    assert np.all(np.isfinite(r.states[0, ~np.isnan(z)]))
+    for i in range(len(lens)):
+        a, b = off[i], off[i + 1]
+        one = f.run(z[a:b], t=t[a:b], return_residuals=True)
+        assert np.array_equal(r.states[:, a:b], one.states, equal_nan=True), i
+        assert np.array_equal(r.residuals[a:b], one.residuals, equal_nan=True), i

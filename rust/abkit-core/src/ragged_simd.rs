@@ -20,13 +20,12 @@
 //! run alone. Gain laws:
 //!
 //! - fixed (`AbFixed`): `K = [alpha, beta / dt]`: one division per step;
-//! - design (`AbDesign`): `lambda = ratio dt^2` and the closed form of
-//!   [`crate::alphabeta::kalman_uv_from_lambda`] in both of its branches
-//!   (`lambda < 1`: two square roots, two divisions; `lambda >= 1`: one
-//!   square root, four divisions, `4 / lambda` taken as `(8 / lambda) / 2`,
-//!   exact for `lambda >= 1`), then `alpha = kalman_alpha(u, v)`,
-//!   `beta = 2 v^2`, `beta / dt`. A block computes only the branches its
-//!   lanes need (both, blended, when they differ).
+//! - design (`AbDesign`): [`crate::irregular::ab_design_rate_gains`]:
+//!   `lambda = ratio dt^2`, one square root, one division (the rate gain
+//!   `beta / dt` is formed without dividing by `dt`), the limit `(1, 2 / dt)`
+//!   blended in only for `lambda >= 1e300`. (Before: the two-branch closed
+//!   form of `kalman_uv_from_lambda` and `beta / dt`: two or three square
+//!   roots and divisions per step, bound by the divider.)
 //!
 //! The vector code runs only on CPUs with AVX2 + FMA (4 lanes; AVX-512F +
 //! FMA, 8 lanes, only with `ABKIT_TRACKS_AVX512=1`: not yet run on an
@@ -556,38 +555,35 @@ fn prefetch<T>(p: *const T) {
     unsafe { _mm_prefetch::<_MM_HINT_T0>(p as *const i8) }
 }
 
-/// `(alpha, beta / dt)` of the design law at `dt` in every slot: the
-/// scalar `AbDesign::ab_gains` (see the module docs).
+/// `(alpha, beta / dt)` of the design law at `dt` in every slot: exactly
+/// the operations of the scalar [`crate::irregular::ab_design_rate_gains`]
+/// (one square root, one division; the limit `(1, 2 / dt)` blended in for
+/// `lambda >= AB_DESIGN_BIG`, only computed when a slot needs it).
 #[inline(always)]
-unsafe fn design_gains<V: Vd<W>, const W: usize>(ratio: V, dt: V) -> (V, V) {
+unsafe fn design_gains<V: Vd<W>, const W: usize>(ratio: V, sqrt_ratio: V, dt: V) -> (V, V) {
     // SAFETY: the caller has the CPU features of V.
     unsafe {
         let one = V::splat(1.0);
+        let two = V::splat(2.0);
         let lambda = ratio.mul(dt).mul(dt);
-        let hi = lambda.ge(one);
-        let (mut u, mut v) = (one, one);
-        if !V::all(hi) {
-            // s = sqrt(lambda) sqrt(lambda + 8), d = lambda + 4 + s.
-            let s = lambda.sqrt().mul(lambda.add(V::splat(8.0)).sqrt());
-            let d = lambda.add(V::splat(4.0)).add(s);
-            u = V::splat(4.0).div(d);
-            v = lambda.add(s).div(d);
-        }
-        if !V::none(hi) {
-            // w = (4 / lambda) / (1 + sqrt(1 + 8 / lambda)); 4 / lambda is
-            // exactly (8 / lambda) / 2 for lambda >= 1 (no underflow).
-            let q8 = V::splat(8.0).div(lambda);
-            let q4 = V::splat(0.5).mul(q8);
-            let w = q4.div(one.add(one.add(q8).sqrt()));
-            let opw = one.add(w);
-            u = V::blend(hi, u, w.div(opw));
-            v = V::blend(hi, v, one.div(opw));
-        }
+        let q = lambda.add(V::splat(8.0)).sqrt();
+        let s = sqrt_ratio.mul(dt).mul(q);
+        let ls = lambda.add(s);
+        let r = one.div(ls.add(V::splat(4.0)));
+        let u = V::splat(4.0).mul(r);
+        let v = ls.mul(r);
         // alpha = u < 0.5 ? 1 - u^2 : v (1 + u).
         let small = u.lt(V::splat(0.5));
-        let a = V::blend(small, v.mul(one.add(u)), one.sub(u.mul(u)));
-        let b = V::splat(2.0).mul(v).mul(v);
-        (a, b.div(dt))
+        let mut a = V::blend(small, v.mul(one.add(u)), one.sub(u.mul(u)));
+        let w = ratio.mul(dt).add(sqrt_ratio.mul(q)).mul(r);
+        let mut g = two.mul(v).mul(w);
+        // lambda >= BIG (dt is finite and > 0 here): the limit (1, 2 / dt).
+        let big = lambda.ge(V::splat(crate::irregular::AB_DESIGN_BIG));
+        if !V::none(big) {
+            a = V::blend(big, a, one);
+            g = V::blend(big, g, two.div(dt));
+        }
+        (a, g)
     }
 }
 
@@ -611,7 +607,7 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
         });
         let p1 = par(&|law| match *law {
             AbLaw::Fixed { beta, .. } => beta,
-            AbLaw::Design { .. } => 0.0,
+            AbLaw::Design { ratio } => ratio.sqrt(),
         });
         let mut x = V::from_lanes(&std::array::from_fn(|l| lanes[l].x));
         let mut v = V::from_lanes(&std::array::from_fn(|l| lanes[l].v));
@@ -670,7 +666,7 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             for j in 0..W {
                 let d = dt[j];
                 let (a, g) = if DESIGN {
-                    design_gains::<V, W>(p0, d)
+                    design_gains::<V, W>(p0, p1, d)
                 } else {
                     (p0, p1.div(d))
                 };

@@ -8,9 +8,13 @@ fn ab_design_matches_the_alphabeta_design_at_each_dt() {
     for &dt in &[1e-6, 0.01, 0.1, 0.7, 1.0, 3.3, 100.0, 1e4] {
         let d = AlphaBeta::from_noise(sw, sv, dt).unwrap();
         let s = law.step(dt).unwrap();
-        assert_eq!(s.k[0][0], d.alpha, "dt={dt}");
-        assert_eq!(s.k[1][0], d.beta / dt, "dt={dt}");
+        // One square root and one division (ab_design_rate_gains) against
+        // the two-branch closed form: within a few ulp.
+        let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+        assert!(rel(s.k[0][0], d.alpha) < 1e-15, "dt={dt}");
+        assert!(rel(s.k[1][0], d.beta / dt) < 1e-15, "dt={dt}");
         assert_eq!(s.phi, [[1.0, dt], [0.0, 1.0]]);
+        assert_eq!(law.ab_gains(dt), Some((s.k[0][0], s.k[1][0])));
     }
 }
 
@@ -20,6 +24,15 @@ fn ab_design_limits_are_finite() {
     assert_eq!(law.gains(1e-200), (0.0, 0.0));
     let (a, b) = law.gains(1e200);
     assert_eq!((a, b), (1.0, 2.0));
+    // The rate gains: tiny dt (lambda underflows, sqrt(lambda) does not):
+    // alpha ~ 2 sqrt(2 lambda) / 2, beta / dt ~ 2 v^2 / dt, both finite and
+    // tiny; huge dt: the limit (1, 2 / dt).
+    let (a, g) = law.rate_gains(1e-200);
+    assert!(a > 0.0 && a < 1e-199 && g >= 0.0 && g < 1e-190, "{a} {g}");
+    assert_eq!(law.rate_gains(1e200), (1.0, 2.0 / 1e200));
+    assert_eq!(law.rate_gains(1e151), (1.0, 2.0 / 1e151));
+    let (a, g) = law.rate_gains(1e149);
+    assert!(a == 1.0 && (g * 1e149 - 2.0).abs() < 1e-15, "{a} {g}");
 }
 
 #[test]
