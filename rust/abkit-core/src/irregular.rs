@@ -169,51 +169,51 @@ impl AbDesign {
     /// filters use: [`ab_design_rate_gains`] with this law's ratio.
     #[inline(always)]
     pub fn rate_gains(&self, dt: f64) -> (f64, f64) {
-        ab_design_rate_gains(self.ratio, self.ratio.sqrt(), dt)
+        ab_design_rate_gains(self.ratio.sqrt(), dt)
     }
 }
 
-/// Tracking index above which [`ab_design_rate_gains`] returns the limit
-/// `(1, 2 / dt)` (`alpha` rounds to 1 and `beta` to 2 long before).
-pub const AB_DESIGN_BIG: f64 = 1e300;
+/// `sqrt` of the tracking index above which [`ab_design_rate_gains`]
+/// returns the limit `(1, 2 / dt)` (`lambda >= 1e300`; `alpha` rounds to 1
+/// and `beta` to 2 long before).
+pub const AB_DESIGN_BIG_SQRT: f64 = 1e150;
 
 /// `(alpha, beta / dt)` of the steady-state Kalman alpha-beta design at
 /// `dt` (`ratio = sigma_w / sigma_v`, `sqrt_ratio = sqrt(ratio)`), with one
-/// square root and one division (the irregular-timestamp kernels evaluate
-/// it at every step).
+/// square root, one division and thirteen other operations (the
+/// irregular-timestamp kernels evaluate it at every step).
 ///
-/// With `lambda = ratio dt^2`, `S = sqrt(lambda (lambda + 8))` and
-/// `d = lambda + S + 4`: `u = sqrt(1 - alpha) = 4 / d`,
-/// `v = 1 - u = (lambda + S) / d` (paper 000's closed form, as in
-/// [`crate::alphabeta::kalman_uv_from_lambda`]), `alpha = 1 - u^2`
-/// (`u < 1/2`) or `v (1 + u)`, `beta = 2 v^2`. The rate gain is taken
-/// without the division by `dt`: `sqrt(lambda) = sqrt(ratio) dt`, so
-/// `S = sqrt(ratio) dt q` with `q = sqrt(lambda + 8)` and
-/// `v / dt = (ratio dt + sqrt(ratio) q) / d`, `beta / dt = 2 v (v / dt)`.
-/// Every term is a sum of non-negative numbers (no cancellation); each
-/// result is within a few ulp of the exact design (checked against
-/// 50-digit arithmetic in the tests), and more accurate than dividing
-/// `beta` by `dt` where `lambda` underflows. `lambda >= `[`AB_DESIGN_BIG`]
-/// (or `inf`) gives the limit `(1, 2 / dt)`.
+/// Paper 000's closed form in the tracking index `lambda = ratio dt^2`
+/// (as in [`crate::alphabeta::kalman_uv_from_lambda`]):
+/// `u = sqrt(1 - alpha) = 4 / d`, `v = 1 - u = (lambda + S) / d`,
+/// `S = sqrt(lambda (lambda + 8))`, `d = lambda + S + 4`, `beta = 2 v^2`.
+/// Here in `m = sqrt(lambda) = sqrt(ratio) dt`: with `q = sqrt(m^2 + 8)` and
+/// `p = m + q`, `lambda + S = m p`, so `d = m p + 4`, `r = 1 / d`,
+/// `u = 4 r`, `v = m (p r)`, `alpha = v (1 + u)` (capped at 1) and, since
+/// `m / dt = sqrt(ratio)`, `beta / dt = 2 v^2 / dt = (2 sqrt(ratio)) v (p r)`
+/// without a division by `dt`. Every term is a sum or product of
+/// non-negative numbers (no cancellation): each result is within a few
+/// ulp of the exact design (2e-15 relative, checked against 50-digit
+/// arithmetic in the tests), also where `lambda` underflows (`m` does not).
+/// `m >= `[`AB_DESIGN_BIG_SQRT`] gives the limit `(1, 2 / dt)`. No fused
+/// operations: the same bits on every CPU.
 ///
 /// The vector lanes of the track kernel (`ragged_simd.rs`) do exactly
-/// these IEEE operations in this order (no fused multiply-adds), so both
-/// give bit-identical gains.
+/// these IEEE operations in this order, so both give bit-identical gains.
 #[inline(always)]
-pub fn ab_design_rate_gains(ratio: f64, sqrt_ratio: f64, dt: f64) -> (f64, f64) {
-    let lambda = ratio * dt * dt;
-    if !(lambda < AB_DESIGN_BIG) {
+pub fn ab_design_rate_gains(sqrt_ratio: f64, dt: f64) -> (f64, f64) {
+    let m = sqrt_ratio * dt;
+    if !(m < AB_DESIGN_BIG_SQRT) {
         return (1.0, 2.0 / dt);
     }
-    let q = (lambda + 8.0).sqrt();
-    let s = (sqrt_ratio * dt) * q;
-    let ls = lambda + s;
-    let r = 1.0 / (ls + 4.0);
+    let q = (m * m + 8.0).sqrt();
+    let p = m + q;
+    let r = 1.0 / (m * p + 4.0);
     let u = 4.0 * r;
-    let v = ls * r;
-    let alpha = if u < 0.5 { 1.0 - u * u } else { v * (1.0 + u) };
-    let w = (ratio * dt + sqrt_ratio * q) * r;
-    (alpha, 2.0 * v * w)
+    let pr = p * r;
+    let v = m * pr;
+    let alpha = (v * (1.0 + u)).min(1.0);
+    (alpha, (2.0 * sqrt_ratio) * (v * pr))
 }
 
 impl GainLaw<2, 1> for AbDesign {

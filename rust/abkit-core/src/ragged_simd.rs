@@ -199,6 +199,8 @@ pub(crate) trait Vd<const W: usize>: Copy {
     unsafe fn mul(self, b: Self) -> Self;
     unsafe fn div(self, b: Self) -> Self;
     unsafe fn sqrt(self) -> Self;
+    /// `min(self, b)` (`b` where either is NaN).
+    unsafe fn min(self, b: Self) -> Self;
     unsafe fn fmadd(self, b: Self, c: Self) -> Self;
     unsafe fn fnmadd(self, b: Self, c: Self) -> Self;
     /// `self > b`, `self <= b`, `self < b`, `self >= b` (false for NaN).
@@ -265,6 +267,10 @@ impl Vd<8> for V8 {
     #[inline(always)]
     unsafe fn div(self, b: Self) -> Self {
         V8(_mm512_div_pd(self.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn min(self, b: Self) -> Self {
+        V8(_mm512_min_pd(self.0, b.0))
     }
     #[inline(always)]
     unsafe fn sqrt(self) -> Self {
@@ -435,6 +441,10 @@ impl Vd<4> for V4 {
         V4(_mm256_div_pd(self.0, b.0))
     }
     #[inline(always)]
+    unsafe fn min(self, b: Self) -> Self {
+        V4(_mm256_min_pd(self.0, b.0))
+    }
+    #[inline(always)]
     unsafe fn sqrt(self) -> Self {
         V4(_mm256_sqrt_pd(self.0))
     }
@@ -557,31 +567,28 @@ fn prefetch<T>(p: *const T) {
 
 /// `(alpha, beta / dt)` of the design law at `dt` in every slot: exactly
 /// the operations of the scalar [`crate::irregular::ab_design_rate_gains`]
-/// (one square root, one division; the limit `(1, 2 / dt)` blended in for
-/// `lambda >= AB_DESIGN_BIG`, only computed when a slot needs it).
+/// (`sr = sqrt(ratio)`, `c2 = 2 sr`; one square root, one division; the
+/// limit `(1, 2 / dt)` blended in for `m >= AB_DESIGN_BIG_SQRT`, only
+/// computed when a slot needs it).
 #[inline(always)]
-unsafe fn design_gains<V: Vd<W>, const W: usize>(ratio: V, sqrt_ratio: V, dt: V) -> (V, V) {
+unsafe fn design_gains<V: Vd<W>, const W: usize>(sr: V, c2: V, dt: V) -> (V, V) {
     // SAFETY: the caller has the CPU features of V.
     unsafe {
         let one = V::splat(1.0);
-        let two = V::splat(2.0);
-        let lambda = ratio.mul(dt).mul(dt);
-        let q = lambda.add(V::splat(8.0)).sqrt();
-        let s = sqrt_ratio.mul(dt).mul(q);
-        let ls = lambda.add(s);
-        let r = one.div(ls.add(V::splat(4.0)));
+        let m = sr.mul(dt);
+        let q = m.mul(m).add(V::splat(8.0)).sqrt();
+        let p = m.add(q);
+        let r = one.div(m.mul(p).add(V::splat(4.0)));
         let u = V::splat(4.0).mul(r);
-        let v = ls.mul(r);
-        // alpha = u < 0.5 ? 1 - u^2 : v (1 + u).
-        let small = u.lt(V::splat(0.5));
-        let mut a = V::blend(small, v.mul(one.add(u)), one.sub(u.mul(u)));
-        let w = ratio.mul(dt).add(sqrt_ratio.mul(q)).mul(r);
-        let mut g = two.mul(v).mul(w);
-        // lambda >= BIG (dt is finite and > 0 here): the limit (1, 2 / dt).
-        let big = lambda.ge(V::splat(crate::irregular::AB_DESIGN_BIG));
+        let pr = p.mul(r);
+        let v = m.mul(pr);
+        let mut a = v.mul(one.add(u)).min(one);
+        let mut g = c2.mul(v.mul(pr));
+        // m >= BIG (dt is finite and > 0 here): the limit (1, 2 / dt).
+        let big = m.ge(V::splat(crate::irregular::AB_DESIGN_BIG_SQRT));
         if !V::none(big) {
             a = V::blend(big, a, one);
-            g = V::blend(big, g, two.div(dt));
+            g = V::blend(big, g, V::splat(2.0).div(dt));
         }
         (a, g)
     }
@@ -603,11 +610,11 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
         };
         let p0 = par(&|law| match *law {
             AbLaw::Fixed { alpha, .. } => alpha,
-            AbLaw::Design { ratio } => ratio,
+            AbLaw::Design { ratio } => ratio.sqrt(),
         });
         let p1 = par(&|law| match *law {
             AbLaw::Fixed { beta, .. } => beta,
-            AbLaw::Design { ratio } => ratio.sqrt(),
+            AbLaw::Design { ratio } => 2.0 * ratio.sqrt(),
         });
         let mut x = V::from_lanes(&std::array::from_fn(|l| lanes[l].x));
         let mut v = V::from_lanes(&std::array::from_fn(|l| lanes[l].v));

@@ -11,8 +11,8 @@ fn ab_design_matches_the_alphabeta_design_at_each_dt() {
         // One square root and one division (ab_design_rate_gains) against
         // the two-branch closed form: within a few ulp.
         let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
-        assert!(rel(s.k[0][0], d.alpha) < 1e-15, "dt={dt}");
-        assert!(rel(s.k[1][0], d.beta / dt) < 1e-15, "dt={dt}");
+        assert!(rel(s.k[0][0], d.alpha) < 2e-15, "dt={dt}");
+        assert!(rel(s.k[1][0], d.beta / dt) < 2e-15, "dt={dt}");
         assert_eq!(s.phi, [[1.0, dt], [0.0, 1.0]]);
         assert_eq!(law.ab_gains(dt), Some((s.k[0][0], s.k[1][0])));
     }
@@ -32,7 +32,7 @@ fn ab_design_limits_are_finite() {
     assert_eq!(law.rate_gains(1e200), (1.0, 2.0 / 1e200));
     assert_eq!(law.rate_gains(1e151), (1.0, 2.0 / 1e151));
     let (a, g) = law.rate_gains(1e149);
-    assert!(a == 1.0 && (g * 1e149 - 2.0).abs() < 1e-15, "{a} {g}");
+    assert!(a == 1.0 && (g * 1e149 - 2.0).abs() < 2e-15, "{a} {g}");
 }
 
 #[test]
