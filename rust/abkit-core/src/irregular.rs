@@ -203,7 +203,7 @@ pub const AB_DESIGN_BIG_SQRT: f64 = 1e150;
 #[inline(always)]
 pub fn ab_design_rate_gains(sqrt_ratio: f64, dt: f64) -> (f64, f64) {
     let m = sqrt_ratio * dt;
-    if !(m < AB_DESIGN_BIG_SQRT) {
+    if m >= AB_DESIGN_BIG_SQRT {
         return (1.0, 2.0 / dt);
     }
     let q = (m * m + 8.0).sqrt();
