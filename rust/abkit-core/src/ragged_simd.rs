@@ -667,6 +667,15 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             }
             let mut zv: [V; W] = std::array::from_fn(|l| V::load(zp[l].add(k)));
             V::transpose(&mut zv);
+            // A block without missed measurements skips the coasting
+            // blends (they would select the measured values: same bits).
+            let clean = DESIGN && {
+                let mut m = zv[0].ord();
+                for zj in &zv[1..] {
+                    m = V::and(m, zj.ord());
+                }
+                V::all(m)
+            };
             let mut xo = [zero; W];
             let mut vo = [zero; W];
             let mut eo = [zero; W];
@@ -680,18 +689,27 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
                 // ab_update::<true>.
                 let zj = zv[j];
                 let xpred = d.fmadd(v, x);
-                let valid = zj.ord();
-                let zz = V::blend(valid, zero, zj);
-                let c1 = V::blend(valid, one, one.sub(a));
-                let gg = V::blend(valid, zero, g);
-                let w = gg.fmadd(zz, v);
-                x = c1.fmadd(xpred, a.mul(zz));
-                v = gg.fnmadd(xpred, w);
+                if clean {
+                    let w = g.fmadd(zj, v);
+                    x = one.sub(a).fmadd(xpred, a.mul(zj));
+                    v = g.fnmadd(xpred, w);
+                    if RESID {
+                        eo[j] = zj.sub(xpred);
+                    }
+                } else {
+                    let valid = zj.ord();
+                    let zz = V::blend(valid, zero, zj);
+                    let c1 = V::blend(valid, one, one.sub(a));
+                    let gg = V::blend(valid, zero, g);
+                    let w = gg.fmadd(zz, v);
+                    x = c1.fmadd(xpred, a.mul(zz));
+                    v = gg.fnmadd(xpred, w);
+                    if RESID {
+                        eo[j] = V::blend(valid, nan, zj.sub(xpred));
+                    }
+                }
                 xo[j] = x;
                 vo[j] = v;
-                if RESID {
-                    eo[j] = V::blend(valid, nan, zj.sub(xpred));
-                }
             }
             t_last = tv[W - 1];
             V::transpose(&mut xo);

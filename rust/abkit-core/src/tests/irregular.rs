@@ -28,7 +28,10 @@ fn ab_design_limits_are_finite() {
     // alpha ~ 2 sqrt(2 lambda) / 2, beta / dt ~ 2 v^2 / dt, both finite and
     // tiny; huge dt: the limit (1, 2 / dt).
     let (a, g) = law.rate_gains(1e-200);
-    assert!(a > 0.0 && a < 1e-199 && (0.0..1e-190).contains(&g), "{a} {g}");
+    assert!(
+        a > 0.0 && a < 1e-199 && (0.0..1e-190).contains(&g),
+        "{a} {g}"
+    );
     assert_eq!(law.rate_gains(1e200), (1.0, 2.0 / 1e200));
     assert_eq!(law.rate_gains(1e151), (1.0, 2.0 / 1e151));
     let (a, g) = law.rate_gains(1e149);
