@@ -206,7 +206,8 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
         blocks,
         sb,
     };
-    body::<T>(&ctx, &cs, one, &mut xv, &mut vv, &mut xs, &mut vs);
+    // SAFETY: this function is compiled with AVX2 and FMA.
+    unsafe { body::<T>(&ctx, &cs, one, &mut xv, &mut vv, &mut xs, &mut vs) };
     if nt {
         _mm_sfence();
     }
@@ -247,10 +248,18 @@ struct Body<'a, 'b, T> {
 
 /// The vector blocks of the eight lanes (two groups of four, two
 /// independent dependency chains).
+///
+/// # Safety
+/// Called only from functions compiled with AVX2 and FMA. Always inlined
+/// into them: as an `#[inline]` target-feature function it was inlined only
+/// while it had a single caller (a second caller made LLVM keep it out of
+/// line and the row lanes lost 45 %; docs/benchmarks.md, "Ragged without
+/// t: long tracks in the row lanes, tried").
 #[allow(clippy::too_many_arguments)]
-#[inline]
-#[target_feature(enable = "avx2,fma")]
-fn body<T: IoFloat>(
+// (the inner `unsafe` blocks keep their SAFETY notes inside the outer one)
+#[allow(unused_unsafe)]
+#[inline(always)]
+unsafe fn body<T: IoFloat>(
     ctx: &Body<'_, '_, T>,
     cs: &[Consts; 2],
     one: __m256d,
@@ -259,107 +268,110 @@ fn body<T: IoFloat>(
     xs: &mut [&mut [T]; AB_LANES],
     vs: &mut [&mut [T]; AB_LANES],
 ) {
-    let Body {
-        z,
-        k,
-        x_nt,
-        v_nt,
-        ahead,
-        nt,
-        blocks,
-        sb,
-    } = *ctx;
-    let zero = _mm256_setzero_pd();
-    // Local copies of the states (kept in registers).
-    let (mut xl, mut vl) = (*xv, *vv);
-    for b in 0..blocks {
-        // xbuf[h][l][q]: lane l's samples h W + q V .. + V of the block.
-        let mut xbuf = [[[zero; 2]; AB_LANES]; 2];
-        let mut vbuf = [[[zero; 2]; AB_LANES]; 2];
-        for h in 0..sb / W {
-            // zq[g][q][j]: step q V + j of lanes 4 g .. 4 g + 4.
-            let mut zq = [[[zero; V]; 2]; 2];
-            for g in 0..2 {
-                for q in 0..2 {
-                    let mut r: [__m256d; V] = std::array::from_fn(|i| {
-                        let l = V * g + i;
-                        let at = k[l] + b * sb + h * W + q * V;
-                        if q == 0 {
-                            if let Some((dz, dout)) = ahead {
-                                prefetch(z[l].as_ptr().wrapping_add(dz + at));
-                                if !nt {
-                                    prefetch(xs[l].as_ptr().wrapping_add(dout + at));
-                                    prefetch(vs[l].as_ptr().wrapping_add(dout + at));
+    // SAFETY: the caller has AVX2 and FMA (see above).
+    unsafe {
+        let Body {
+            z,
+            k,
+            x_nt,
+            v_nt,
+            ahead,
+            nt,
+            blocks,
+            sb,
+        } = *ctx;
+        let zero = _mm256_setzero_pd();
+        // Local copies of the states (kept in registers).
+        let (mut xl, mut vl) = (*xv, *vv);
+        for b in 0..blocks {
+            // xbuf[h][l][q]: lane l's samples h W + q V .. + V of the block.
+            let mut xbuf = [[[zero; 2]; AB_LANES]; 2];
+            let mut vbuf = [[[zero; 2]; AB_LANES]; 2];
+            for h in 0..sb / W {
+                // zq[g][q][j]: step q V + j of lanes 4 g .. 4 g + 4.
+                let mut zq = [[[zero; V]; 2]; 2];
+                for g in 0..2 {
+                    for q in 0..2 {
+                        let mut r: [__m256d; V] = std::array::from_fn(|i| {
+                            let l = V * g + i;
+                            let at = k[l] + b * sb + h * W + q * V;
+                            if q == 0 {
+                                if let Some((dz, dout)) = ahead {
+                                    prefetch(z[l].as_ptr().wrapping_add(dz + at));
+                                    if !nt {
+                                        prefetch(xs[l].as_ptr().wrapping_add(dout + at));
+                                        prefetch(vs[l].as_ptr().wrapping_add(dout + at));
+                                    }
                                 }
                             }
-                        }
-                        // SAFETY: at + V <= k[l] + blocks * sb <= n = z[l].len().
-                        unsafe { load4(z[l].as_ptr().add(at)) }
-                    });
-                    transpose4(&mut r);
-                    zq[g][q] = r;
-                }
-            }
-            // xo[g][q][j]: estimate after step q V + j of lanes 4 g .. 4 g + 4.
-            let mut xo = [[[zero; V]; 2]; 2];
-            let mut vo = [[[zero; V]; 2]; 2];
-            for q in 0..2 {
-                for j in 0..V {
-                    for g in 0..2 {
-                        step(&cs[g], one, &mut xl[g], &mut vl[g], zq[g][q][j]);
-                        xo[g][q][j] = xl[g];
-                        vo[g][q][j] = vl[g];
+                            // SAFETY: at + V <= k[l] + blocks * sb <= n = z[l].len().
+                            unsafe { load4(z[l].as_ptr().add(at)) }
+                        });
+                        transpose4(&mut r);
+                        zq[g][q] = r;
                     }
                 }
-            }
-            for g in 0..2 {
+                // xo[g][q][j]: estimate after step q V + j of lanes 4 g .. 4 g + 4.
+                let mut xo = [[[zero; V]; 2]; 2];
+                let mut vo = [[[zero; V]; 2]; 2];
                 for q in 0..2 {
-                    transpose4(&mut xo[g][q]);
-                    transpose4(&mut vo[g][q]);
-                    for i in 0..V {
-                        xbuf[h][V * g + i][q] = xo[g][q][i];
-                        vbuf[h][V * g + i][q] = vo[g][q][i];
+                    for j in 0..V {
+                        for g in 0..2 {
+                            step(&cs[g], one, &mut xl[g], &mut vl[g], zq[g][q][j]);
+                            xo[g][q][j] = xl[g];
+                            vo[g][q][j] = vl[g];
+                        }
+                    }
+                }
+                for g in 0..2 {
+                    for q in 0..2 {
+                        transpose4(&mut xo[g][q]);
+                        transpose4(&mut vo[g][q]);
+                        for i in 0..V {
+                            xbuf[h][V * g + i][q] = xo[g][q][i];
+                            vbuf[h][V * g + i][q] = vo[g][q][i];
+                        }
                     }
                 }
             }
-        }
-        // f64: all x lines of the lanes, then all v lines; f32: lane by
-        // lane (x line, v line). Measured the faster order of each on Zen 3.
-        if is_f64::<T>() {
-            for (c, buf, stream) in [(0, &xbuf, x_nt), (1, &vbuf, v_nt)] {
+            // f64: all x lines of the lanes, then all v lines; f32: lane by
+            // lane (x line, v line). Measured the faster order of each on Zen 3.
+            if is_f64::<T>() {
+                for (c, buf, stream) in [(0, &xbuf, x_nt), (1, &vbuf, v_nt)] {
+                    for l in 0..AB_LANES {
+                        let at = k[l] + b * sb;
+                        let p = if c == 0 {
+                            xs[l].as_mut_ptr()
+                        } else {
+                            vs[l].as_mut_ptr()
+                        };
+                        // SAFETY: at + sb <= n = xs[l].len() = vs[l].len();
+                        // streamed stores are 32-byte aligned (x_nt, v_nt), and
+                        // every store is 32 bytes at a multiple of 32 bytes past
+                        // `at`.
+                        unsafe {
+                            store32(p.add(at), buf[0][l][0], zero, stream[l]);
+                            store32(p.add(at + V), buf[0][l][1], zero, stream[l]);
+                        }
+                    }
+                }
+            } else {
                 for l in 0..AB_LANES {
                     let at = k[l] + b * sb;
-                    let p = if c == 0 {
-                        xs[l].as_mut_ptr()
-                    } else {
-                        vs[l].as_mut_ptr()
-                    };
-                    // SAFETY: at + sb <= n = xs[l].len() = vs[l].len();
-                    // streamed stores are 32-byte aligned (x_nt, v_nt), and
-                    // every store is 32 bytes at a multiple of 32 bytes past
-                    // `at`.
+                    let (px, pv) = (xs[l].as_mut_ptr(), vs[l].as_mut_ptr());
+                    // SAFETY: as above (a line of 16 f32 is two 32-byte stores).
                     unsafe {
-                        store32(p.add(at), buf[0][l][0], zero, stream[l]);
-                        store32(p.add(at + V), buf[0][l][1], zero, stream[l]);
+                        store32(px.add(at), xbuf[0][l][0], xbuf[0][l][1], x_nt[l]);
+                        store32(px.add(at + W), xbuf[1][l][0], xbuf[1][l][1], x_nt[l]);
+                        store32(pv.add(at), vbuf[0][l][0], vbuf[0][l][1], v_nt[l]);
+                        store32(pv.add(at + W), vbuf[1][l][0], vbuf[1][l][1], v_nt[l]);
                     }
                 }
             }
-        } else {
-            for l in 0..AB_LANES {
-                let at = k[l] + b * sb;
-                let (px, pv) = (xs[l].as_mut_ptr(), vs[l].as_mut_ptr());
-                // SAFETY: as above (a line of 16 f32 is two 32-byte stores).
-                unsafe {
-                    store32(px.add(at), xbuf[0][l][0], xbuf[0][l][1], x_nt[l]);
-                    store32(px.add(at + W), xbuf[1][l][0], xbuf[1][l][1], x_nt[l]);
-                    store32(pv.add(at), vbuf[0][l][0], vbuf[0][l][1], v_nt[l]);
-                    store32(pv.add(at + W), vbuf[1][l][0], vbuf[1][l][1], v_nt[l]);
-                }
-            }
         }
+        *xv = xl;
+        *vv = vl;
     }
-    *xv = xl;
-    *vv = vl;
 }
 
 /// Scalar steps of every lane `l` over samples `from[l]..to[l]`, the lanes

@@ -1,0 +1,92 @@
+//! Micro-benchmark of the irregular-timestamp lanes (not a test): ns per
+//! sample of `filter_tracks` on `n` tracks of `len` samples, best of reps.
+use abkit_core::filter::{Init, TrackState};
+use abkit_core::irregular::{AbDesign, AbFixed, GainLaw};
+use abkit_core::ragged::{filter_tracks, NoPost, Options, Samples, TrackFilter};
+use std::time::Instant;
+
+fn bench<L: GainLaw<2, 1>>(name: &str, laws: &[L], z: &[f64], t: &[f64], off: &[i64], reps: usize) {
+    let f = TrackFilter {
+        laws,
+        h: [[1.0, 0.0]],
+        h_pinv: [[1.0], [0.0]],
+    };
+    let o = Options {
+        init: Init::TwoPoint,
+        t_nominal: 0.1,
+        max_gap: None,
+        drop_duplicates: false,
+    };
+    let n_tracks = off.len() - 1;
+    let mut st = vec![TrackState::default(); n_tracks];
+    let mut counts = vec![[0i64; 2]; n_tracks];
+    let mut states = vec![0.0f64; 2 * z.len()];
+    let zs = Samples::flat(z, 1).unwrap();
+    let ts = Samples::flat(t, 1).unwrap();
+    let mut best = f64::INFINITY;
+    for _ in 0..reps {
+        st.iter_mut().for_each(|s| *s = TrackState::default());
+        let t0 = Instant::now();
+        filter_tracks(
+            &f,
+            &o,
+            off,
+            &zs,
+            Some(&ts),
+            &mut st,
+            &mut states,
+            None,
+            &mut counts,
+            false,
+            &NoPost,
+        )
+        .unwrap();
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    println!(
+        "{name}: {:.2} ns/sample = {:.0} Ms/s",
+        best * 1e9 / z.len() as f64,
+        z.len() as f64 / best / 1e6
+    );
+}
+
+fn main() {
+    let a: Vec<usize> = std::env::args()
+        .skip(1)
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let (n, len, reps) = (a[0], a[1], a[2]);
+    let mut s = 12345u64;
+    let mut r = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut z, mut t, mut off) = (Vec::new(), Vec::new(), vec![0i64]);
+    for _ in 0..n {
+        let mut tk = 0.0;
+        for _ in 0..len {
+            tk += if a.len() > 3 {
+                0.1 * (1.0 + (r() < 0.1) as u32 as f64)
+            } else {
+                -0.1 * (1.0 - r()).ln()
+            };
+            t.push(tk);
+            z.push(2.0 * tk + r());
+        }
+        off.push(off.last().unwrap() + len as i64);
+    }
+    bench("design", &[AbDesign { ratio: 0.1 }], &z, &t, &off, reps);
+    bench(
+        "fixed ",
+        &[AbFixed {
+            alpha: 0.3,
+            beta: 0.05,
+        }],
+        &z,
+        &t,
+        &off,
+        reps,
+    );
+}
