@@ -1,5 +1,14 @@
-//! Micro-benchmark of the irregular-timestamp lanes (not a test): ns per
-//! sample of `filter_tracks` on `n` tracks of `len` samples, best of reps.
+//! Micro-benchmark of the irregular-timestamp alpha-beta lanes (not a
+//! test; docs/benchmarks.md, "Irregular timestamps: the design law in one
+//! square root and one division"): ns per sample of `filter_tracks` on `n`
+//! tracks of `len` samples with exponential time steps (mean 0.1), best of
+//! `reps` runs, design law (`ratio = 0.1`) and fixed gains.
+//!
+//! ```sh
+//! cargo run --release -p abkit-core --example irrbench -- 4 4000 3000     # in L2
+//! cargo run --release -p abkit-core --example irrbench -- 1000 10000 3    # 10^7 samples
+//! cargo run --release -p abkit-core --example irrbench -- 4 4000 3000 1   # steps 0.1 / 0.2
+//! ```
 use abkit_core::filter::{Init, TrackState};
 use abkit_core::irregular::{AbDesign, AbFixed, GainLaw};
 use abkit_core::ragged::{filter_tracks, NoPost, Options, Samples, TrackFilter};
