@@ -14,7 +14,14 @@ use abkit_core::irregular::{AbDesign, AbFixed, GainLaw};
 use abkit_core::ragged::{filter_tracks, NoPost, Options, Samples, TrackFilter};
 use std::time::Instant;
 
-fn bench<L: GainLaw<2, 1>>(name: &str, laws: &[L], z: &[f64], t: &[f64], off: &[i64], reps: usize) {
+fn bench<L: GainLaw<2, 1>>(
+    name: &str,
+    laws: &[L],
+    z: &[f64],
+    t: &[f64],
+    off: &[i64],
+    reps: usize,
+) -> Result<(), abkit_core::Error> {
     let f = TrackFilter {
         laws,
         h: [[1.0, 0.0]],
@@ -30,8 +37,8 @@ fn bench<L: GainLaw<2, 1>>(name: &str, laws: &[L], z: &[f64], t: &[f64], off: &[
     let mut st = vec![TrackState::default(); n_tracks];
     let mut counts = vec![[0i64; 2]; n_tracks];
     let mut states = vec![0.0f64; 2 * z.len()];
-    let zs = Samples::flat(z, 1).unwrap();
-    let ts = Samples::flat(t, 1).unwrap();
+    let zs = Samples::flat(z, 1)?;
+    let ts = Samples::flat(t, 1)?;
     let mut best = f64::INFINITY;
     for _ in 0..reps {
         st.iter_mut().for_each(|s| *s = TrackState::default());
@@ -48,8 +55,7 @@ fn bench<L: GainLaw<2, 1>>(name: &str, laws: &[L], z: &[f64], t: &[f64], off: &[
             &mut counts,
             false,
             &NoPost,
-        )
-        .unwrap();
+        )?;
         best = best.min(t0.elapsed().as_secs_f64());
     }
     println!(
@@ -57,14 +63,17 @@ fn bench<L: GainLaw<2, 1>>(name: &str, laws: &[L], z: &[f64], t: &[f64], off: &[
         best * 1e9 / z.len() as f64,
         z.len() as f64 / best / 1e6
     );
+    Ok(())
 }
 
-fn main() {
-    let a: Vec<usize> = std::env::args()
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let a = std::env::args()
         .skip(1)
-        .map(|s| s.parse().unwrap())
-        .collect();
-    let (n, len, reps) = (a[0], a[1], a[2]);
+        .map(|s| s.parse::<usize>())
+        .collect::<Result<Vec<_>, _>>()?;
+    let &[n, len, reps, ..] = &a[..] else {
+        return Err("usage: irrbench N_TRACKS LEN REPS [REGULAR]".into());
+    };
     let mut s = 12345u64;
     let mut r = || {
         s = s
@@ -72,7 +81,8 @@ fn main() {
             .wrapping_add(1442695040888963407);
         (s >> 11) as f64 / (1u64 << 53) as f64
     };
-    let (mut z, mut t, mut off) = (Vec::new(), Vec::new(), vec![0i64]);
+    let (mut z, mut t) = (Vec::new(), Vec::new());
+    let off: Vec<i64> = (0..=n).map(|i| (i * len) as i64).collect();
     for _ in 0..n {
         let mut tk = 0.0;
         for _ in 0..len {
@@ -84,9 +94,8 @@ fn main() {
             t.push(tk);
             z.push(2.0 * tk + r());
         }
-        off.push(off.last().unwrap() + len as i64);
     }
-    bench("design", &[AbDesign { ratio: 0.1 }], &z, &t, &off, reps);
+    bench("design", &[AbDesign { ratio: 0.1 }], &z, &t, &off, reps)?;
     bench(
         "fixed ",
         &[AbFixed {
@@ -97,5 +106,6 @@ fn main() {
         &t,
         &off,
         reps,
-    );
+    )?;
+    Ok(())
 }
