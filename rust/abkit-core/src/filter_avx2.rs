@@ -2,20 +2,23 @@
 //! of an [`AB_LANES`] group in two 4-slot `f64` registers (lanes 0-3 and
 //! 4-7).
 //!
-//! Per block of eight samples each lane loads its eight consecutive samples
-//! (two 4-wide loads), 4 x 4 transposes of the four quadrants give "step
-//! `j` of lanes 0-3" and "step `j` of lanes 4-7", eight vector steps run the
-//! recursion of both halves (two independent dependency chains), and 4 x 4
-//! transposes turn the estimates back into rows, stored a whole 64-byte
-//! cache line at a time (two 32-byte stores; `f32`: blocks of sixteen
-//! samples, narrowed to a line of sixteen `f32`). The order of the stores
-//! matters on Zen 3: `f64` writes the eight `x` lines of a block, then the
-//! eight `v` lines (0.93 of the non-temporal copy ceiling on 1,000 x 10,000,
-//! against 0.6 lane by lane); `f32` lane by lane (`x` line, `v` line), the
-//! faster order there. The arithmetic of each
-//! slot is exactly the scalar [`ab_step`] with FMA (the same fused
-//! operations in the same order), so results are bit-identical to the
-//! scalar lanes and to the AVX-512 lanes.
+//! Per block (one 64-byte cache line of output per lane: 8 `f64` or 16
+//! `f32` samples) the first group of four lanes runs all its steps, then the
+//! second. Per quarter of four steps: four row loads (`f32` widened), a
+//! 4 x 4 transpose, four vector steps, two 4 x 4 transposes back and eight
+//! 4-sample row stores (`x`, `v`; `f32` narrowed). Few values are live at a
+//! time, so the states stay in registers (an earlier version kept a whole
+//! block of both groups in flight and spilled the states to the stack: the
+//! store-to-load round trip sat on the dependency chain; 1.4 -> 0.95 ns per
+//! sample in `f32`, 1.05 -> 0.87 in `f64`, in L2 on Zen 3). A quarter
+//! whose `z` has no NaN runs [`step_clean`] (the same operations without the
+//! compare and selects). For outputs too big for the caches the block's
+//! rows are staged in a small buffer and streamed out whole lines at a time
+//! (the group's `x` lines, then its `v` lines): lines written in pieces by
+//! streamed stores ran about six times slower. The arithmetic of each slot
+//! is exactly the scalar [`ab_step`] with FMA (the same fused operations in
+//! the same order), so results are bit-identical to the scalar lanes and to
+//! the AVX-512 lanes.
 //!
 //! As in the AVX-512 lanes, every lane first steps (scalar) to a sample
 //! whose `x` output starts a cache line, so the stores are aligned and, for
@@ -28,8 +31,6 @@ use super::{ab_step, prefetch, AbConst, IoFloat, AB_LANES};
 
 /// Slots per register.
 const V: usize = 4;
-/// Samples per sub-block (two registers per lane).
-const W: usize = 8;
 
 /// Four consecutive samples at `p`, widened to `f64`.
 ///
@@ -62,34 +63,6 @@ fn transpose4(r: &mut [__m256d; V]) {
     r[3] = _mm256_permute2f128_pd::<0x31>(t1, t3);
 }
 
-/// Store 32 bytes at `p`: 4 `f64` (`a`), or 8 `f32` (`a` then `b`, narrowed
-/// with round to nearest); streamed past the caches if `nt`.
-///
-/// # Safety
-/// `T` is `f64` or `f32`, the 32 bytes at `p` are writable and, if `nt`,
-/// aligned to 32 bytes; AVX is available.
-#[inline]
-#[target_feature(enable = "avx2")]
-unsafe fn store32<T: 'static>(p: *mut T, a: __m256d, b: __m256d, nt: bool) {
-    // SAFETY: forwarded from the caller.
-    unsafe {
-        if is_f64::<T>() {
-            if nt {
-                _mm256_stream_pd(p as *mut f64, a)
-            } else {
-                _mm256_storeu_pd(p as *mut f64, a)
-            }
-        } else {
-            let v = _mm256_set_m128(_mm256_cvtpd_ps(b), _mm256_cvtpd_ps(a));
-            if nt {
-                _mm256_stream_ps(p as *mut f32, v)
-            } else {
-                _mm256_storeu_ps(p as *mut f32, v)
-            }
-        }
-    }
-}
-
 /// Per-slot constants of four lanes.
 #[derive(Clone, Copy)]
 struct Consts {
@@ -113,6 +86,18 @@ fn step(c: &Consts, one: __m256d, x: &mut __m256d, v: &mut __m256d, z: __m256d) 
     let w = _mm256_fmadd_pd(g, zz, *v);
     *x = _mm256_fmadd_pd(c1, xp, _mm256_mul_pd(c.alpha, zz));
     *v = _mm256_fnmadd_pd(g, xp, w);
+}
+
+/// [`step`] for four `z` known not to be NaN: the same operations on the
+/// same operands (`zz = z`, `c1 = 1 - alpha`, `g = g2`), so the same bits,
+/// without the compare and the three selects.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn step_clean(c: &Consts, x: &mut __m256d, v: &mut __m256d, z: __m256d) {
+    let xp = _mm256_fmadd_pd(c.t, *v, *x);
+    let w = _mm256_fmadd_pd(c.g2, z, *v);
+    *x = _mm256_fmadd_pd(c.oma, xp, _mm256_mul_pd(c.alpha, z));
+    *v = _mm256_fnmadd_pd(c.g2, xp, w);
 }
 
 /// The eight lanes over samples `k0..n` (see the module docs): the same
@@ -199,17 +184,26 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     let ctx = Body {
         z: &z,
         k: &k,
-        x_nt: &x_nt,
-        v_nt: &v_nt,
+        stream: std::array::from_fn(|i| {
+            if i < AB_LANES {
+                x_nt[i]
+            } else {
+                v_nt[i - AB_LANES]
+            }
+        }),
         ahead,
-        nt,
         blocks,
         sb,
     };
-    // SAFETY: this function is compiled with AVX2 and FMA.
-    unsafe { body::<T>(&ctx, &cs, one, &mut xv, &mut vv, &mut xs, &mut vs) };
-    if nt {
-        _mm_sfence();
+    // SAFETY: this function is compiled with AVX2 and FMA; blocks * sb
+    // samples from k[l] fit every lane; a row is streamed only if aligned.
+    unsafe {
+        if nt {
+            body::<T, true>(&ctx, &cs, one, &mut xv, &mut vv, &mut xs, &mut vs);
+            _mm_sfence();
+        } else {
+            body::<T, false>(&ctx, &cs, one, &mut xv, &mut vv, &mut xs, &mut vs);
+        }
     }
     // SAFETY: x, v are plain arrays of 8 f64.
     unsafe {
@@ -238,28 +232,75 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
 struct Body<'a, 'b, T> {
     z: &'a [&'b [T]; AB_LANES],
     k: &'a [usize; AB_LANES],
-    x_nt: &'a [bool; AB_LANES],
-    v_nt: &'a [bool; AB_LANES],
+    /// Whether row `i` (`x` rows, then `v` rows) is streamed (if `NT`).
+    stream: [bool; 2 * AB_LANES],
     ahead: Option<(usize, usize)>,
-    nt: bool,
     blocks: usize,
     sb: usize,
 }
 
-/// The vector blocks of the eight lanes (two groups of four, two
-/// independent dependency chains).
+/// Store the four samples `a` of one lane at `p` (32 bytes of `f64`, or 16
+/// bytes of `f32` narrowed with round to nearest).
+///
+/// # Safety
+/// `T` is `f64` or `f32`, the four elements at `p` are writable; AVX is
+/// available.
+#[inline(always)]
+unsafe fn store4<T: 'static>(p: *mut T, a: __m256d) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if is_f64::<T>() {
+            _mm256_storeu_pd(p as *mut f64, a)
+        } else {
+            _mm_storeu_ps(p as *mut f32, _mm256_cvtpd_ps(a))
+        }
+    }
+}
+
+/// Copy the 64-byte line at `src` to `dst` (two 32-byte stores, streamed
+/// past the caches if `nt`).
+///
+/// # Safety
+/// `src` has 64 readable bytes, `dst` 64 writable bytes, aligned to 32 if
+/// `nt`; AVX is available.
+#[inline(always)]
+unsafe fn copy_line<T>(dst: *mut T, src: *const T, nt: bool) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        let (s, d) = (src as *const __m256i, dst as *mut __m256i);
+        let (a, b) = (_mm256_loadu_si256(s), _mm256_loadu_si256(s.add(1)));
+        if nt {
+            _mm256_stream_si256(d, a);
+            _mm256_stream_si256(d.add(1), b);
+        } else {
+            _mm256_storeu_si256(d, a);
+            _mm256_storeu_si256(d.add(1), b);
+        }
+    }
+}
+
+/// The vector blocks of the eight lanes: per block (one cache line of
+/// output per lane) the first group of four lanes runs all its steps, then
+/// the second; per quarter of four steps, four row loads, a transpose, four
+/// vector steps, two transposes back and eight 4-sample row stores (`x`
+/// and `v`), so that few values are live at a time and the states stay in
+/// registers. A quarter whose `z` has no NaN runs [`step_clean`], else
+/// [`step`]. If `NT`, the block's rows go through `stage` and out whole
+/// lines at a time, streamed where `ctx.stream` says so.
 ///
 /// # Safety
 /// Called only from functions compiled with AVX2 and FMA. Always inlined
 /// into them: as an `#[inline]` target-feature function it was inlined only
 /// while it had a single caller (a second caller made LLVM keep it out of
 /// line and the row lanes lost 45 %; docs/benchmarks.md, "Ragged without
-/// t: long tracks in the row lanes, tried").
+/// t: long tracks in the row lanes, tried"). `blocks * sb` samples from
+/// `k[l]` exist in every lane's `z`, `xs` and `vs`; a streamed row is
+/// 32-byte aligned at `k[l]`.
 #[allow(clippy::too_many_arguments)]
 // (the inner `unsafe` blocks keep their SAFETY notes inside the outer one)
 #[allow(unused_unsafe)]
 #[inline(always)]
-unsafe fn body<T: IoFloat>(
+unsafe fn body<T: IoFloat, const NT: bool>(
     ctx: &Body<'_, '_, T>,
     cs: &[Consts; 2],
     one: __m256d,
@@ -268,103 +309,86 @@ unsafe fn body<T: IoFloat>(
     xs: &mut [&mut [T]; AB_LANES],
     vs: &mut [&mut [T]; AB_LANES],
 ) {
-    // SAFETY: the caller has AVX2 and FMA (see above).
+    // SAFETY: the caller has AVX2 and FMA (see above); every pointer below
+    // stays inside its lane's slice: at + V <= k[l] + blocks * sb <= n.
     unsafe {
         let Body {
             z,
             k,
-            x_nt,
-            v_nt,
+            stream,
             ahead,
-            nt,
             blocks,
             sb,
         } = *ctx;
+        let zp: [*const T; AB_LANES] = std::array::from_fn(|l| z[l].as_ptr().add(k[l]));
+        let xp: [*mut T; AB_LANES] = std::array::from_fn(|l| xs[l].as_mut_ptr().add(k[l]));
+        let vp: [*mut T; AB_LANES] = std::array::from_fn(|l| vs[l].as_mut_ptr().add(k[l]));
         let zero = _mm256_setzero_pd();
+        // With streamed stores: a group's block of outputs (one line per
+        // lane, x then v), written out whole lines at a time (lines written
+        // in pieces by streamed stores are many times slower).
+        let mut stage = [[T::from_f64(0.0); 16]; 2 * V];
         // Local copies of the states (kept in registers).
         let (mut xl, mut vl) = (*xv, *vv);
         for b in 0..blocks {
-            // xbuf[h][l][q]: lane l's samples h W + q V .. + V of the block.
-            let mut xbuf = [[[zero; 2]; AB_LANES]; 2];
-            let mut vbuf = [[[zero; 2]; AB_LANES]; 2];
-            for h in 0..sb / W {
-                // zq[g][q][j]: step q V + j of lanes 4 g .. 4 g + 4.
-                let mut zq = [[[zero; V]; 2]; 2];
-                for g in 0..2 {
-                    for q in 0..2 {
-                        let mut r: [__m256d; V] = std::array::from_fn(|i| {
-                            let l = V * g + i;
-                            let at = k[l] + b * sb + h * W + q * V;
-                            if q == 0 {
-                                if let Some((dz, dout)) = ahead {
-                                    prefetch(z[l].as_ptr().wrapping_add(dz + at));
-                                    if !nt {
-                                        prefetch(xs[l].as_ptr().wrapping_add(dout + at));
-                                        prefetch(vs[l].as_ptr().wrapping_add(dout + at));
-                                    }
-                                }
-                            }
-                            // SAFETY: at + V <= k[l] + blocks * sb <= n = z[l].len().
-                            unsafe { load4(z[l].as_ptr().add(at)) }
-                        });
-                        transpose4(&mut r);
-                        zq[g][q] = r;
-                    }
-                }
-                // xo[g][q][j]: estimate after step q V + j of lanes 4 g .. 4 g + 4.
-                let mut xo = [[[zero; V]; 2]; 2];
-                let mut vo = [[[zero; V]; 2]; 2];
-                for q in 0..2 {
-                    for j in 0..V {
-                        for g in 0..2 {
-                            step(&cs[g], one, &mut xl[g], &mut vl[g], zq[g][q][j]);
-                            xo[g][q][j] = xl[g];
-                            vo[g][q][j] = vl[g];
-                        }
-                    }
-                }
-                for g in 0..2 {
-                    for q in 0..2 {
-                        transpose4(&mut xo[g][q]);
-                        transpose4(&mut vo[g][q]);
-                        for i in 0..V {
-                            xbuf[h][V * g + i][q] = xo[g][q][i];
-                            vbuf[h][V * g + i][q] = vo[g][q][i];
-                        }
+            let base = b * sb;
+            if let Some((dz, dout)) = ahead {
+                for l in 0..AB_LANES {
+                    prefetch(zp[l].wrapping_add(dz + base));
+                    if !NT {
+                        prefetch(xp[l].wrapping_add(dout + base));
+                        prefetch(vp[l].wrapping_add(dout + base));
                     }
                 }
             }
-            // f64: all x lines of the lanes, then all v lines; f32: lane by
-            // lane (x line, v line). Measured the faster order of each on Zen 3.
-            if is_f64::<T>() {
-                for (c, buf, stream) in [(0, &xbuf, x_nt), (1, &vbuf, v_nt)] {
-                    for l in 0..AB_LANES {
-                        let at = k[l] + b * sb;
-                        let p = if c == 0 {
-                            xs[l].as_mut_ptr()
+            for g in 0..2 {
+                for q in 0..sb / V {
+                    let at = base + q * V;
+                    let mut r: [__m256d; V] =
+                        std::array::from_fn(|i| unsafe { load4(zp[V * g + i].add(at)) });
+                    // unord(a, b) is set where a or b is NaN.
+                    let nan = _mm256_or_pd(
+                        _mm256_cmp_pd::<_CMP_UNORD_Q>(r[0], r[1]),
+                        _mm256_cmp_pd::<_CMP_UNORD_Q>(r[2], r[3]),
+                    );
+                    transpose4(&mut r);
+                    let mut xo = [zero; V];
+                    let mut vo = [zero; V];
+                    if _mm256_movemask_pd(nan) == 0 {
+                        for j in 0..V {
+                            step_clean(&cs[g], &mut xl[g], &mut vl[g], r[j]);
+                            xo[j] = xl[g];
+                            vo[j] = vl[g];
+                        }
+                    } else {
+                        for j in 0..V {
+                            step(&cs[g], one, &mut xl[g], &mut vl[g], r[j]);
+                            xo[j] = xl[g];
+                            vo[j] = vl[g];
+                        }
+                    }
+                    transpose4(&mut xo);
+                    transpose4(&mut vo);
+                    for i in 0..V {
+                        if NT {
+                            store4::<T>(stage[i].as_mut_ptr().add(q * V), xo[i]);
+                            store4::<T>(stage[V + i].as_mut_ptr().add(q * V), vo[i]);
                         } else {
-                            vs[l].as_mut_ptr()
-                        };
-                        // SAFETY: at + sb <= n = xs[l].len() = vs[l].len();
-                        // streamed stores are 32-byte aligned (x_nt, v_nt), and
-                        // every store is 32 bytes at a multiple of 32 bytes past
-                        // `at`.
-                        unsafe {
-                            store32(p.add(at), buf[0][l][0], zero, stream[l]);
-                            store32(p.add(at + V), buf[0][l][1], zero, stream[l]);
+                            store4::<T>(xp[V * g + i].add(at), xo[i]);
+                            store4::<T>(vp[V * g + i].add(at), vo[i]);
                         }
                     }
                 }
-            } else {
-                for l in 0..AB_LANES {
-                    let at = k[l] + b * sb;
-                    let (px, pv) = (xs[l].as_mut_ptr(), vs[l].as_mut_ptr());
-                    // SAFETY: as above (a line of 16 f32 is two 32-byte stores).
-                    unsafe {
-                        store32(px.add(at), xbuf[0][l][0], xbuf[0][l][1], x_nt[l]);
-                        store32(px.add(at + W), xbuf[1][l][0], xbuf[1][l][1], x_nt[l]);
-                        store32(pv.add(at), vbuf[0][l][0], vbuf[0][l][1], v_nt[l]);
-                        store32(pv.add(at + W), vbuf[1][l][0], vbuf[1][l][1], v_nt[l]);
+                if NT {
+                    // Whole lines, each by two consecutive streamed
+                    // stores: the group's x lines, then its v lines.
+                    for i in 0..2 * V {
+                        let (dst, row) = if i < V {
+                            (xp[V * g + i], V * g + i)
+                        } else {
+                            (vp[V * g + i - V], AB_LANES + V * g + i - V)
+                        };
+                        copy_line(dst.add(base), stage[i].as_ptr(), stream[row]);
                     }
                 }
             }

@@ -1,0 +1,54 @@
+//! Micro-benchmark of the rectangular alpha-beta row kernels (not a test):
+//! ns per sample of `filter_ab` on `n` tracks of `len` samples (best of
+//! `reps` runs), `f64` and `f32`, one thread, outputs reused.
+//!
+//! ```sh
+//! cargo run --release -p abkit-core --example rowbench -- 8 2048 20000   # in L2
+//! cargo run --release -p abkit-core --example rowbench -- 1000 10000 5   # 10^7 samples
+//! ```
+use abkit_core::filter::{filter_ab, Init, IoFloat, Measurements, TrackState};
+use std::time::Instant;
+
+fn bench<F: IoFloat>(name: &str, n: usize, len: usize, reps: usize) -> abkit_core::Result<()> {
+    let z: Vec<F> = (0..n * len)
+        .map(|i| F::from_f64((i % len) as f64 * 0.7 + ((i * 7919) % 13) as f64 * 0.1))
+        .collect();
+    let meas = Measurements::contiguous(&z, n, len, 1)?;
+    let mut states = vec![TrackState::default(); n];
+    let mut out = vec![F::from_f64(0.0); 2 * n * len];
+    let mut best = f64::INFINITY;
+    for _ in 0..reps {
+        states.fill(TrackState::default());
+        let t0 = Instant::now();
+        filter_ab(
+            &[(0.5, 0.2, 0.1)],
+            Init::TwoPoint,
+            &meas,
+            &mut states,
+            &mut out,
+            None,
+            false,
+            None,
+        )?;
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    println!(
+        "{name} {n}x{len}: {:.3} ns/sample = {:.0} Ms/s",
+        best * 1e9 / (n * len) as f64,
+        (n * len) as f64 / best / 1e6
+    );
+    Ok(())
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let a = std::env::args()
+        .skip(1)
+        .map(|s| s.parse::<usize>())
+        .collect::<Result<Vec<_>, _>>()?;
+    let &[n, len, reps, ..] = &a[..] else {
+        return Err("usage: rowbench N_TRACKS LEN REPS".into());
+    };
+    bench::<f64>("f64", n, len, reps)?;
+    bench::<f32>("f32", n, len, reps)?;
+    Ok(())
+}
