@@ -65,11 +65,11 @@ fn transpose4(r: &mut [__m256d; V]) {
 
 /// Per-slot constants of four lanes.
 #[derive(Clone, Copy)]
-struct Consts {
-    t: __m256d,
-    alpha: __m256d,
-    oma: __m256d,
-    g2: __m256d,
+pub(super) struct Consts {
+    pub(super) t: __m256d,
+    pub(super) alpha: __m256d,
+    pub(super) oma: __m256d,
+    pub(super) g2: __m256d,
 }
 
 /// One vector step of four lanes: exactly `ab_step::<true>` per slot
@@ -93,7 +93,7 @@ fn step(c: &Consts, one: __m256d, x: &mut __m256d, v: &mut __m256d, z: __m256d) 
 /// without the compare and the three selects.
 #[inline]
 #[target_feature(enable = "avx2,fma")]
-fn step_clean(c: &Consts, x: &mut __m256d, v: &mut __m256d, z: __m256d) {
+pub(super) fn step_clean(c: &Consts, x: &mut __m256d, v: &mut __m256d, z: __m256d) {
     let xp = _mm256_fmadd_pd(c.t, *v, *x);
     let w = _mm256_fmadd_pd(c.g2, z, *v);
     *x = _mm256_fmadd_pd(c.oma, xp, _mm256_mul_pd(c.alpha, z));
@@ -257,6 +257,90 @@ unsafe fn store4<T: 'static>(p: *mut T, a: __m256d) {
     }
 }
 
+/// One block of four lanes: where each lane's block starts (`z` samples,
+/// `x` and `v` outputs) and whether its `x` / `v` line is streamed.
+pub(super) struct Rows<T> {
+    pub(super) z: [*const T; V],
+    pub(super) x: [*mut T; V],
+    pub(super) v: [*mut T; V],
+    /// `x` rows, then `v` rows.
+    pub(super) stream: [bool; 2 * V],
+}
+
+/// One block (`sb` samples: one 64-byte line of output) of four lanes, a
+/// quarter (four steps) at a time: four row loads (`f32` widened), a 4 x 4
+/// transpose, four vector steps ([`step_clean`] if the quarter has no NaN
+/// `z`, else [`step`]), two transposes back and eight 4-sample row stores;
+/// few values are live, so the states stay in registers. If `NT`, the rows
+/// go through `stage` and out whole lines at a time (`x` lines, then `v`
+/// lines; streamed where `rows.stream` says so).
+///
+/// # Safety
+/// Called only from functions compiled with AVX2 and FMA (always inlined);
+/// `sb` is 8 (`f64`) or 16 (`f32`); each lane has `sb` readable `z` and
+/// `sb` writable `x` and `v` elements at its pointers; a streamed line is
+/// 32-byte aligned.
+#[allow(unused_unsafe)]
+#[inline(always)]
+pub(super) unsafe fn group_block<T: IoFloat, const NT: bool>(
+    c: &Consts,
+    one: __m256d,
+    x: &mut __m256d,
+    v: &mut __m256d,
+    rows: &Rows<T>,
+    sb: usize,
+    stage: &mut [[T; 16]; 2 * V],
+) {
+    // SAFETY: the caller has AVX2 and FMA; every access is inside a lane's
+    // sb elements (q V + V <= sb) or inside `stage` (sb <= 16).
+    unsafe {
+        let zero = _mm256_setzero_pd();
+        for q in 0..sb / V {
+            let at = q * V;
+            let mut r: [__m256d; V] = std::array::from_fn(|i| unsafe { load4(rows.z[i].add(at)) });
+            // unord(a, b) is set where a or b is NaN.
+            let nan = _mm256_or_pd(
+                _mm256_cmp_pd::<_CMP_UNORD_Q>(r[0], r[1]),
+                _mm256_cmp_pd::<_CMP_UNORD_Q>(r[2], r[3]),
+            );
+            transpose4(&mut r);
+            let mut xo = [zero; V];
+            let mut vo = [zero; V];
+            if _mm256_movemask_pd(nan) == 0 {
+                for j in 0..V {
+                    step_clean(c, x, v, r[j]);
+                    xo[j] = *x;
+                    vo[j] = *v;
+                }
+            } else {
+                for j in 0..V {
+                    step(c, one, x, v, r[j]);
+                    xo[j] = *x;
+                    vo[j] = *v;
+                }
+            }
+            transpose4(&mut xo);
+            transpose4(&mut vo);
+            for i in 0..V {
+                if NT {
+                    store4::<T>(stage[i].as_mut_ptr().add(at), xo[i]);
+                    store4::<T>(stage[V + i].as_mut_ptr().add(at), vo[i]);
+                } else {
+                    store4::<T>(rows.x[i].add(at), xo[i]);
+                    store4::<T>(rows.v[i].add(at), vo[i]);
+                }
+            }
+        }
+        if NT {
+            // Whole lines, each by two consecutive stores.
+            for i in 0..2 * V {
+                let dst = if i < V { rows.x[i] } else { rows.v[i - V] };
+                copy_line(dst, stage[i].as_ptr(), rows.stream[i]);
+            }
+        }
+    }
+}
+
 /// Copy the 64-byte line at `src` to `dst` (two 32-byte stores, streamed
 /// past the caches if `nt`).
 ///
@@ -323,7 +407,6 @@ unsafe fn body<T: IoFloat, const NT: bool>(
         let zp: [*const T; AB_LANES] = std::array::from_fn(|l| z[l].as_ptr().add(k[l]));
         let xp: [*mut T; AB_LANES] = std::array::from_fn(|l| xs[l].as_mut_ptr().add(k[l]));
         let vp: [*mut T; AB_LANES] = std::array::from_fn(|l| vs[l].as_mut_ptr().add(k[l]));
-        let zero = _mm256_setzero_pd();
         // With streamed stores: a group's block of outputs (one line per
         // lane, x then v), written out whole lines at a time (lines written
         // in pieces by streamed stores are many times slower).
@@ -342,55 +425,26 @@ unsafe fn body<T: IoFloat, const NT: bool>(
                 }
             }
             for g in 0..2 {
-                for q in 0..sb / V {
-                    let at = base + q * V;
-                    let mut r: [__m256d; V] =
-                        std::array::from_fn(|i| unsafe { load4(zp[V * g + i].add(at)) });
-                    // unord(a, b) is set where a or b is NaN.
-                    let nan = _mm256_or_pd(
-                        _mm256_cmp_pd::<_CMP_UNORD_Q>(r[0], r[1]),
-                        _mm256_cmp_pd::<_CMP_UNORD_Q>(r[2], r[3]),
-                    );
-                    transpose4(&mut r);
-                    let mut xo = [zero; V];
-                    let mut vo = [zero; V];
-                    if _mm256_movemask_pd(nan) == 0 {
-                        for j in 0..V {
-                            step_clean(&cs[g], &mut xl[g], &mut vl[g], r[j]);
-                            xo[j] = xl[g];
-                            vo[j] = vl[g];
-                        }
+                let lanes = |p: &[*const T; AB_LANES]| -> [*const T; V] {
+                    std::array::from_fn(|i| p[V * g + i].wrapping_add(base))
+                };
+                let lanes_mut = |p: &[*mut T; AB_LANES]| -> [*mut T; V] {
+                    std::array::from_fn(|i| p[V * g + i].wrapping_add(base))
+                };
+                let st: [bool; 2 * V] = std::array::from_fn(|i| {
+                    if i < V {
+                        stream[V * g + i]
                     } else {
-                        for j in 0..V {
-                            step(&cs[g], one, &mut xl[g], &mut vl[g], r[j]);
-                            xo[j] = xl[g];
-                            vo[j] = vl[g];
-                        }
+                        stream[AB_LANES + V * g + i - V]
                     }
-                    transpose4(&mut xo);
-                    transpose4(&mut vo);
-                    for i in 0..V {
-                        if NT {
-                            store4::<T>(stage[i].as_mut_ptr().add(q * V), xo[i]);
-                            store4::<T>(stage[V + i].as_mut_ptr().add(q * V), vo[i]);
-                        } else {
-                            store4::<T>(xp[V * g + i].add(at), xo[i]);
-                            store4::<T>(vp[V * g + i].add(at), vo[i]);
-                        }
-                    }
-                }
-                if NT {
-                    // Whole lines, each by two consecutive streamed
-                    // stores: the group's x lines, then its v lines.
-                    for i in 0..2 * V {
-                        let (dst, row) = if i < V {
-                            (xp[V * g + i], V * g + i)
-                        } else {
-                            (vp[V * g + i - V], AB_LANES + V * g + i - V)
-                        };
-                        copy_line(dst.add(base), stage[i].as_ptr(), stream[row]);
-                    }
-                }
+                });
+                let rows = Rows {
+                    z: lanes(&zp),
+                    x: lanes_mut(&xp),
+                    v: lanes_mut(&vp),
+                    stream: st,
+                };
+                group_block::<T, NT>(&cs[g], one, &mut xl[g], &mut vl[g], &rows, sb, &mut stage);
             }
         }
         *xv = xl;
