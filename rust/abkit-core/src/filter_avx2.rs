@@ -9,8 +9,11 @@
 //! 4-sample row stores (`x`, `v`; `f32` narrowed). Few values are live at a
 //! time, so the states stay in registers (an earlier version kept a whole
 //! block of both groups in flight and spilled the states to the stack: the
-//! store-to-load round trip sat on the dependency chain; 1.4 -> 0.95 ns per
-//! sample in `f32`, 1.05 -> 0.87 in `f64`, in L2 on Zen 3). A quarter
+//! store-to-load round trip sat on the dependency chain; 8 rows of 2,100
+//! samples in L2 on Zen 3: 1.02 -> 0.81 ns per sample in `f32`, 0.89-1.04
+//! -> 0.73 in `f64`). Interleaving the two groups per quarter or per step
+//! ran as fast on such rows and slower on rows whose addresses alias (a
+//! multiple of 4 KiB apart). A quarter
 //! whose `z` has no NaN runs [`step_clean`] (the same operations without the
 //! compare and selects). For outputs too big for the caches the block's
 //! rows are staged in a small buffer and streamed out whole lines at a time
