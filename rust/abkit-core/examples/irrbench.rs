@@ -95,7 +95,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             z.push(2.0 * tk + r());
         }
     }
-    bench("design", &[AbDesign { ratio: 0.1 }], &z, &t, &off, reps)?;
+    bench("design", &[AbDesign::new(0.1)], &z, &t, &off, reps)?;
     bench(
         "fixed ",
         &[AbFixed {

@@ -149,10 +149,26 @@ impl GainLaw<2, 1> for AbFixed {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AbDesign {
     /// `sigma_w / sigma_v` (finite, > 0).
-    pub ratio: f64,
+    ratio: f64,
+    /// `sqrt(ratio)`, taken once (the per-step law needs only it).
+    sqrt_ratio: f64,
 }
 
 impl AbDesign {
+    /// The design law of `ratio = sigma_w / sigma_v` (finite, > 0; the
+    /// callers validate it).
+    pub fn new(ratio: f64) -> Self {
+        Self {
+            ratio,
+            sqrt_ratio: ratio.sqrt(),
+        }
+    }
+
+    /// `sigma_w / sigma_v`.
+    pub fn ratio(&self) -> f64 {
+        self.ratio
+    }
+
     /// `(alpha, beta)` of the Kalman design at `dt`: tracking index
     /// `lambda = ratio dt^2`, then the closed form of paper 000 (same
     /// arithmetic as [`crate::alphabeta::AlphaBeta::from_noise`]).
@@ -169,7 +185,7 @@ impl AbDesign {
     /// filters use: [`ab_design_rate_gains`] with this law's ratio.
     #[inline(always)]
     pub fn rate_gains(&self, dt: f64) -> (f64, f64) {
-        ab_design_rate_gains(self.ratio.sqrt(), dt)
+        ab_design_rate_gains(self.sqrt_ratio, dt)
     }
 }
 

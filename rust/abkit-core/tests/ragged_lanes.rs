@@ -164,7 +164,7 @@ fn lens() -> Vec<usize> {
 fn design_law_batch_equals_tracks_alone() {
     for (seed, wide) in [(1, true), (2, false)] {
         let d = data(seed, &lens(), wide, 0.0, 0.0, 0.1);
-        let laws = [AbDesign { ratio: 0.1 }];
+        let laws = [AbDesign::new(0.1)];
         check_alone::<f64, _>(&laws, &d, &opts(None, false, Init::TwoPoint), true);
         check_alone::<f64, _>(&laws, &d, &opts(None, false, Init::TwoPoint), false);
         check_alone::<f32, _>(&laws, &d, &opts(None, false, Init::First), true);
@@ -187,12 +187,7 @@ fn gaps_drops_and_per_track_laws_equal_tracks_alone() {
     let l = lens();
     let d = data(4, &l, true, 0.01, 0.01, 0.3);
     let mut r = Lcg(77);
-    let design: Vec<AbDesign> = l
-        .iter()
-        .map(|_| AbDesign {
-            ratio: 0.01 + r.next(),
-        })
-        .collect();
+    let design: Vec<AbDesign> = l.iter().map(|_| AbDesign::new(0.01 + r.next())).collect();
     let fixed: Vec<AbFixed> = l
         .iter()
         .map(|_| AbFixed {
@@ -220,7 +215,7 @@ fn batch_matches_plain_reference_loop() {
     let l = [700usize, 3, 1000, 64, 400, 900, 17, 1200, 800];
     let d = data(5, &l, true, 0.0, 0.0, 0.1);
     let ratio = 0.1;
-    let laws = [AbDesign { ratio }];
+    let laws = [AbDesign::new(ratio)];
     let o = opts(None, false, Init::TwoPoint);
     let out = run(&laws, &o, &d.z, &d.t, &d.off, false);
     let n = d.z.len();

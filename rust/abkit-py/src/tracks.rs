@@ -113,7 +113,7 @@ pub(crate) fn parse_law(kind: &str, params: &[f64], width: usize) -> PyResult<La
             })
             .collect(),
         ),
-        "ab-design" => Law::AbDesign(rows.map(|r| AbDesign { ratio: r[0] }).collect()),
+        "ab-design" => Law::AbDesign(rows.map(|r| AbDesign::new(r[0])).collect()),
         "abg-fixed" => Law::AbgFixed(
             rows.map(|r| AbgFixed {
                 alpha: r[0],

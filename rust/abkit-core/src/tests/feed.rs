@@ -133,7 +133,7 @@ fn check<L: GainLaw<N, 1>, const N: usize>(laws: &[L], h: [[f64; N]; 1], h_pinv:
 
 #[test]
 fn feed_equals_grouped_ragged_kernel() {
-    check(&[AbDesign { ratio: 0.7 }], [[1.0, 0.0]], [[1.0], [0.0]]);
+    check(&[AbDesign::new(0.7)], [[1.0, 0.0]], [[1.0], [0.0]]);
     check(
         &[AbgFixed {
             alpha: 0.5,
@@ -171,7 +171,7 @@ fn time_order_is_a_stable_argsort_with_nan_last() {
 
 #[test]
 fn feed_errors_name_track_and_sample() {
-    let laws = [AbDesign { ratio: 1.0 }];
+    let laws = [AbDesign::new(1.0)];
     let filt = TrackFilter {
         laws: &laws,
         h: [[1.0, 0.0]],

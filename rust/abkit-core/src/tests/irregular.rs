@@ -4,7 +4,7 @@ use crate::alphabeta::AlphaBeta;
 #[test]
 fn ab_design_matches_the_alphabeta_design_at_each_dt() {
     let (sw, sv) = (3.2, 32.0);
-    let mut law = AbDesign { ratio: sw / sv };
+    let mut law = AbDesign::new(sw / sv);
     for &dt in &[1e-6, 0.01, 0.1, 0.7, 1.0, 3.3, 100.0, 1e4] {
         let d = AlphaBeta::from_noise(sw, sv, dt).unwrap();
         let s = law.step(dt).unwrap();
@@ -20,7 +20,7 @@ fn ab_design_matches_the_alphabeta_design_at_each_dt() {
 
 #[test]
 fn ab_design_limits_are_finite() {
-    let law = AbDesign { ratio: 1.0 };
+    let law = AbDesign::new(1.0);
     assert_eq!(law.gains(1e-200), (0.0, 0.0));
     let (a, b) = law.gains(1e200);
     assert_eq!((a, b), (1.0, 2.0));

@@ -25,7 +25,7 @@ struct Run {
 }
 
 fn run(offsets: &[i64], z: &[f64], t: Option<&[f64]>, o: &Options, parallel: bool) -> Result<Run> {
-    let laws = [AbDesign { ratio: 0.3 }];
+    let laws = [AbDesign::new(0.3)];
     let f = ab_filter(&laws);
     let n_tracks = offsets.len().saturating_sub(1);
     let mut states = vec![TrackState::default(); n_tracks];
