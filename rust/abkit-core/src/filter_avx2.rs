@@ -187,12 +187,14 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     let ctx = Body {
         z: &z,
         k: &k,
-        stream: std::array::from_fn(|i| {
-            if i < AB_LANES {
-                x_nt[i]
-            } else {
-                v_nt[i - AB_LANES]
-            }
+        stream: std::array::from_fn(|g| {
+            std::array::from_fn(|i| {
+                if i < V {
+                    x_nt[V * g + i]
+                } else {
+                    v_nt[V * g + i - V]
+                }
+            })
         }),
         ahead,
         blocks,
@@ -235,8 +237,9 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
 struct Body<'a, 'b, T> {
     z: &'a [&'b [T]; AB_LANES],
     k: &'a [usize; AB_LANES],
-    /// Whether row `i` (`x` rows, then `v` rows) is streamed (if `NT`).
-    stream: [bool; 2 * AB_LANES],
+    /// Per group of four lanes, whether row `i` (`x` rows, then `v` rows)
+    /// is streamed (if `NT`).
+    stream: [[bool; 2 * V]; 2],
     ahead: Option<(usize, usize)>,
     blocks: usize,
     sb: usize,
@@ -407,9 +410,13 @@ unsafe fn body<T: IoFloat, const NT: bool>(
             blocks,
             sb,
         } = *ctx;
-        let zp: [*const T; AB_LANES] = std::array::from_fn(|l| z[l].as_ptr().add(k[l]));
-        let xp: [*mut T; AB_LANES] = std::array::from_fn(|l| xs[l].as_mut_ptr().add(k[l]));
-        let vp: [*mut T; AB_LANES] = std::array::from_fn(|l| vs[l].as_mut_ptr().add(k[l]));
+        // Each group's rows at its lanes' first vector sample.
+        let groups: [Rows<T>; 2] = std::array::from_fn(|g| Rows {
+            z: std::array::from_fn(|i| z[V * g + i].as_ptr().add(k[V * g + i])),
+            x: std::array::from_fn(|i| xs[V * g + i].as_mut_ptr().add(k[V * g + i])),
+            v: std::array::from_fn(|i| vs[V * g + i].as_mut_ptr().add(k[V * g + i])),
+            stream: stream[g],
+        });
         // With streamed stores: a group's block of outputs (one line per
         // lane, x then v), written out whole lines at a time (lines written
         // in pieces by streamed stores are many times slower).
@@ -419,35 +426,24 @@ unsafe fn body<T: IoFloat, const NT: bool>(
         for b in 0..blocks {
             let base = b * sb;
             if let Some((dz, dout)) = ahead {
-                for l in 0..AB_LANES {
-                    prefetch(zp[l].wrapping_add(dz + base));
-                    if !NT {
-                        prefetch(xp[l].wrapping_add(dout + base));
-                        prefetch(vp[l].wrapping_add(dout + base));
+                for rows in &groups {
+                    for i in 0..V {
+                        prefetch(rows.z[i].wrapping_add(dz + base));
+                        if !NT {
+                            prefetch(rows.x[i].wrapping_add(dout + base));
+                            prefetch(rows.v[i].wrapping_add(dout + base));
+                        }
                     }
                 }
             }
-            for g in 0..2 {
-                let lanes = |p: &[*const T; AB_LANES]| -> [*const T; V] {
-                    std::array::from_fn(|i| p[V * g + i].wrapping_add(base))
+            for (g, rows) in groups.iter().enumerate() {
+                let block = Rows {
+                    z: rows.z.map(|p| p.wrapping_add(base)),
+                    x: rows.x.map(|p| p.wrapping_add(base)),
+                    v: rows.v.map(|p| p.wrapping_add(base)),
+                    stream: rows.stream,
                 };
-                let lanes_mut = |p: &[*mut T; AB_LANES]| -> [*mut T; V] {
-                    std::array::from_fn(|i| p[V * g + i].wrapping_add(base))
-                };
-                let st: [bool; 2 * V] = std::array::from_fn(|i| {
-                    if i < V {
-                        stream[V * g + i]
-                    } else {
-                        stream[AB_LANES + V * g + i - V]
-                    }
-                });
-                let rows = Rows {
-                    z: lanes(&zp),
-                    x: lanes_mut(&xp),
-                    v: lanes_mut(&vp),
-                    stream: st,
-                };
-                group_block::<T, NT>(&cs[g], one, &mut xl[g], &mut vl[g], &rows, sb, &mut stage);
+                group_block::<T, NT>(&cs[g], one, &mut xl[g], &mut vl[g], &block, sb, &mut stage);
             }
         }
         *xv = xl;
