@@ -376,16 +376,24 @@ def test_flat_kernels_equal_scalar_lanes_bitwise_in_child_processes(tmp_path):
     # Default (the flat kernel of this CPU), the generic kernel's AVX-512
     # instance where the CPU has AVX-512 (opt-in ABKIT_FLAT_AVX512=1; on
     # other CPUs the variable changes nothing) and the scalar lanes and
-    # track kernel (ABKIT_DISABLE_SIMD=1): the same bits.
-    runs = (("on", {}), ("gen", {"ABKIT_FLAT_AVX512": "1"}), ("off", {"ABKIT_DISABLE_SIMD": "1"}))
+    # track kernel (ABKIT_DISABLE_SIMD=1): the same bits. Short rows run in
+    # the AVX2 short-row lanes by default on AVX2-only CPUs (small batches)
+    # and in the flat kernel with ABKIT_SHORT_ROWS_FLAT=1: the same bits.
+    runs = (
+        ("on", {}),
+        ("gen", {"ABKIT_FLAT_AVX512": "1"}),
+        ("flat", {"ABKIT_SHORT_ROWS_FLAT": "1"}),
+        ("off", {"ABKIT_DISABLE_SIMD": "1"}),
+    )
     for tag, extra in runs:
         e = dict(os.environ)
-        e.pop("ABKIT_DISABLE_SIMD", None)
-        e.pop("ABKIT_FLAT_AVX512", None)
+        for k in ("ABKIT_DISABLE_SIMD", "ABKIT_FLAT_AVX512", "ABKIT_SHORT_ROWS_FLAT"):
+            e.pop(k, None)
         e.update(extra)
         subprocess.run([sys.executable, "-c", _CHILD, str(tmp_path), tag], check=True, env=e)
-    on, gen, off = (np.load(tmp_path / f"{t}.npz") for t in ("on", "gen", "off"))
+    on, gen, flat, off = (np.load(tmp_path / f"{t}.npz") for t in ("on", "gen", "flat", "off"))
     assert len(on.files) > 100
     for k in on.files:
         assert np.array_equal(on[k], off[k], equal_nan=True), k
         assert np.array_equal(gen[k], off[k], equal_nan=True), k
+        assert np.array_equal(flat[k], off[k], equal_nan=True), k

@@ -30,7 +30,10 @@
 use std::arch::x86_64::*;
 
 use super::simd::{fits, is_f64};
-use super::{ab_step, prefetch, AbConst, IoFloat, AB_LANES};
+use super::{
+    ab_loop, ab_start, ab_step, prefetch, AbConst, Init, IoFloat, TrackOut, TrackState, AB_LANES,
+};
+use crate::Result;
 
 /// Slots per register.
 const V: usize = 4;
@@ -153,23 +156,7 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     let x_nt: [bool; AB_LANES] = std::array::from_fn(|l| nt && aligned(xs[l].as_ptr(), k[l]));
     let v_nt: [bool; AB_LANES] = std::array::from_fn(|l| nt && aligned(vs[l].as_ptr(), k[l]));
     let blocks = k.iter().map(|&kl| (n - kl) / sb).min().unwrap_or(0);
-    let consts = |g: usize| {
-        let lane = |f: fn(&AbConst) -> f64| {
-            _mm256_set_pd(
-                f(&c[4 * g + 3]),
-                f(&c[4 * g + 2]),
-                f(&c[4 * g + 1]),
-                f(&c[4 * g]),
-            )
-        };
-        Consts {
-            t: lane(|c| c.t),
-            alpha: lane(|c| c.alpha),
-            oma: lane(|c| c.one_minus_alpha),
-            g2: lane(|c| c.g2),
-        }
-    };
-    let cs = [consts(0), consts(1)];
+    let cs = [consts(c, 0), consts(c, 1)];
     let one = _mm256_set1_pd(1.0);
     // SAFETY (loads): x, v are plain arrays of 8 f64.
     let mut xv = unsafe {
@@ -283,7 +270,7 @@ pub(super) struct Rows<T> {
 ///
 /// # Safety
 /// Called only from functions compiled with AVX2 and FMA (always inlined);
-/// `sb` is 8 (`f64`) or 16 (`f32`); each lane has `sb` readable `z` and
+/// `sb` is 8 (`f64`) or 16 (`f32`) if `NT`, else a multiple of 4 up to 16; each lane has `sb` readable `z` and
 /// `sb` writable `x` and `v` elements at its pointers; a streamed line is
 /// 32-byte aligned.
 #[allow(unused_unsafe)]
@@ -480,6 +467,416 @@ fn scalar_steps<T: IoFloat>(
                 xs[l][kk] = T::from_f64(x1);
                 vs[l][kk] = T::from_f64(v1);
             }
+        }
+    }
+}
+
+/// Short contiguous rows (`z`, `xs`, `vs`: `states.len()` rows of `n`
+/// samples back to back; row `j` has the gains `params(j)`), eight rows at
+/// a time: each row's start-up (`ab_start`) and steps to a common first
+/// running sample, then the eight lanes a block (two quarters) of each
+/// group at a time as in [`body`], the last steps scalar. Unless `nt` the
+/// lanes write the outputs directly; with `nt` they write a stage of eight
+/// rows per component (in the caches), which goes out while the lanes fill
+/// the other stage, whole lines streamed past the caches: eight rows of
+/// outputs are one contiguous region, so there are no scalar heads to
+/// line-aligned outputs and partial lines only at the ends of a call.
+/// Rows left over (fewer than eight) and groups with a row that does not
+/// run take the scalar loop. Every step is `ab_step::<true>`
+/// (bit-identical to the scalar lanes and to the flat kernel).
+///
+/// In the caches this runs 1.3-1.5x faster than the flat kernel (two
+/// groups of four lanes overlap their dependency chains; the flat kernel
+/// has one); from memory it was slower in `f64` (the streamed outputs cost
+/// it about 1 ns per sample more than the flat kernel's, not understood)
+/// and faster in `f32` with streamed outputs (docs/benchmarks.md, "Short
+/// rows in two groups of lanes"), so `filter_ab` runs it only there.
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA; `T` is `f32` or `f64`.
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn ab_short_rows<T: IoFloat>(
+    params: &dyn Fn(usize) -> (f64, f64, f64),
+    init: Init,
+    n: usize,
+    z: &[T],
+    xs: &mut [T],
+    vs: &mut [T],
+    states: &mut [TrackState],
+    nt: bool,
+) -> Result<()> {
+    let cn = states.len();
+    let total = cn
+        .checked_mul(n)
+        .ok_or_else(|| crate::Error::Shape("short rows: size overflow".into()))?;
+    if z.len() < total || xs.len() < total || vs.len() < total {
+        return Err(crate::Error::Shape(
+            "short rows: buffers do not match the rows".into(),
+        ));
+    }
+    const L: usize = AB_LANES;
+    // Streamed outputs: two stages of eight rows per component; while the
+    // lanes fill one, the other drains to the outputs a few lines per block
+    // (spread over the computation rather than one burst per group).
+    let seg = L * n;
+    let mut stage = vec![T::from_f64(0.0); if nt { 4 * seg } else { 0 }];
+    let sp = stage.as_mut_ptr();
+    let (xp, vp) = (xs.as_mut_ptr(), vs.as_mut_ptr());
+    let mut cur = 0;
+    let mut drains: [Option<Drain<T>>; 2] = [None, None];
+    let one = _mm256_set1_pd(1.0);
+    let mut dummy = [[T::from_f64(0.0); 16]; 2 * V];
+    let mut j0 = 0;
+    while j0 < cn {
+        let rows = (cn - j0).min(L);
+        let zb = &z[j0 * n..(j0 + rows) * n];
+        // SAFETY: (j0 + rows) n <= total <= xs.len(), vs.len(); the blocks
+        // are disjoint and every access to xs and vs goes through xp, vp
+        // (a drain writes the previous block's while this one runs).
+        let (ox, ov) = unsafe {
+            (
+                std::slice::from_raw_parts_mut(xp.add(j0 * n), rows * n),
+                std::slice::from_raw_parts_mut(vp.add(j0 * n), rows * n),
+            )
+        };
+        let sts = &mut states[j0..j0 + rows];
+        if rows < L {
+            // Left-over rows: each alone, straight into the outputs.
+            for (l, st) in sts.iter_mut().enumerate() {
+                let zr = &zb[l * n..(l + 1) * n];
+                let (a, b, t) = params(j0 + l);
+                let mut o = TrackOut {
+                    states: [&mut ox[l * n..(l + 1) * n], &mut ov[l * n..(l + 1) * n]],
+                    resid: None,
+                };
+                let k0 = ab_start::<T>(a, b, t, init, st, n, &|k| zr[k].to_f64(), &mut o);
+                if st.phase >= 2.0 {
+                    ab_loop::<T, true>(
+                        &AbConst::new(a, b, t),
+                        st,
+                        k0,
+                        n,
+                        |k| zr[k].to_f64(),
+                        &mut o,
+                    );
+                }
+            }
+            break;
+        }
+        // Streamed: through the stage; else straight into the outputs.
+        let (dx, dv): (&mut [T], &mut [T]) = if nt {
+            // SAFETY: stage `cur` (x: segment 2 cur, v: 2 cur + 1) is
+            // inside `stage` and disjoint from the draining one; all
+            // accesses go through `sp`.
+            unsafe {
+                (
+                    std::slice::from_raw_parts_mut(sp.add(2 * cur * seg), seg),
+                    std::slice::from_raw_parts_mut(sp.add((2 * cur + 1) * seg), seg),
+                )
+            }
+        } else {
+            (&mut *ox, &mut *ov)
+        };
+        let mut c = [AbConst::new(0.5, 0.1, 1.0); L];
+        let mut k0 = [0usize; L];
+        for (l, st) in sts.iter_mut().enumerate() {
+            let zr = &zb[l * n..(l + 1) * n];
+            let (a, b, t) = params(j0 + l);
+            c[l] = AbConst::new(a, b, t);
+            let mut o = TrackOut {
+                states: [&mut dx[l * n..(l + 1) * n], &mut dv[l * n..(l + 1) * n]],
+                resid: None,
+            };
+            k0[l] = ab_start::<T>(a, b, t, init, st, n, &|k| zr[k].to_f64(), &mut o);
+        }
+        let running = sts.iter().all(|s| s.phase >= 2.0);
+        let kmax = if running {
+            k0.iter().copied().max().unwrap_or(n)
+        } else {
+            n
+        };
+        let nq = (n - kmax) / V;
+        if nq < 2 {
+            // Scalar rows (a row that does not run, or too few samples).
+            for (l, st) in sts.iter_mut().enumerate() {
+                if st.phase < 2.0 {
+                    continue;
+                }
+                let zr = &zb[l * n..(l + 1) * n];
+                let mut o = TrackOut {
+                    states: [&mut dx[l * n..(l + 1) * n], &mut dv[l * n..(l + 1) * n]],
+                    resid: None,
+                };
+                ab_loop::<T, true>(&c[l], st, k0[l], n, |k| zr[k].to_f64(), &mut o);
+            }
+        } else {
+            let mut x = [0.0; L];
+            let mut v = [0.0; L];
+            for (l, st) in sts.iter_mut().enumerate() {
+                let zr = &zb[l * n..(l + 1) * n];
+                let mut o = TrackOut {
+                    states: [&mut dx[l * n..(l + 1) * n], &mut dv[l * n..(l + 1) * n]],
+                    resid: None,
+                };
+                ab_loop::<T, true>(&c[l], st, k0[l], kmax, |k| zr[k].to_f64(), &mut o);
+                x[l] = st.x[0];
+                v[l] = st.x[1];
+            }
+            let cs = [consts(&c, 0), consts(&c, 1)];
+            // SAFETY: x, v are plain arrays of 8 f64.
+            let (mut xv, mut vv) = unsafe {
+                (
+                    [
+                        _mm256_loadu_pd(x.as_ptr()),
+                        _mm256_loadu_pd(x.as_ptr().add(V)),
+                    ],
+                    [
+                        _mm256_loadu_pd(v.as_ptr()),
+                        _mm256_loadu_pd(v.as_ptr().add(V)),
+                    ],
+                )
+            };
+            let groups: [Rows<T>; 2] = std::array::from_fn(|g| Rows {
+                z: std::array::from_fn(|i| zb[(V * g + i) * n + kmax..].as_ptr()),
+                x: std::array::from_fn(|i| dx[(V * g + i) * n + kmax..].as_mut_ptr()),
+                v: std::array::from_fn(|i| dv[(V * g + i) * n + kmax..].as_mut_ptr()),
+                stream: [false; 2 * V],
+            });
+            // The next eight rows' z, fetched a group ahead in the order the
+            // lanes read them (each row at the same offset as this block's
+            // lanes): eight short rows defeat the hardware prefetcher.
+            let ahead = (j0 + 2 * L) * n <= z.len();
+            let next = zb.as_ptr().wrapping_add(L * n + kmax);
+            let blocks = nq / 2;
+            let drain_per = drains
+                .iter()
+                .map(|d| {
+                    d.as_ref()
+                        .map_or(0, |d| d.lines_left().div_ceil(blocks.max(1)))
+                })
+                .max()
+                .unwrap_or(0);
+            for q in (0..nq).step_by(2) {
+                let base = q * V;
+                let sb = if q + 1 < nq { 2 * V } else { V };
+                if ahead && q == 0 {
+                    // The next rows' states and first samples (the start-ups
+                    // read them first).
+                    let sn = sts.as_ptr().wrapping_add(L) as *const u8;
+                    for p in (0..L * std::mem::size_of::<TrackState>()).step_by(64) {
+                        prefetch(sn.wrapping_add(p));
+                    }
+                    for r in 0..L {
+                        prefetch(next.wrapping_add(r * n).wrapping_sub(kmax));
+                    }
+                }
+                if ahead {
+                    for r in 0..L {
+                        prefetch(next.wrapping_add(r * n + base + 2 * V));
+                        if q + 2 >= nq {
+                            prefetch(next.wrapping_add(r * n + n - 1 - kmax));
+                        }
+                    }
+                }
+                for (g, rows) in groups.iter().enumerate() {
+                    let block = Rows {
+                        z: rows.z.map(|p| p.wrapping_add(base)),
+                        x: rows.x.map(|p| p.wrapping_add(base)),
+                        v: rows.v.map(|p| p.wrapping_add(base)),
+                        stream: rows.stream,
+                    };
+                    // SAFETY: base + sb <= nq V <= n - kmax samples from
+                    // kmax in every row of zb, dx and dv; not streamed.
+                    unsafe {
+                        group_block::<T, false>(
+                            &cs[g], one, &mut xv[g], &mut vv[g], &block, sb, &mut dummy,
+                        )
+                    };
+                }
+                for d in drains.iter_mut().flatten() {
+                    // SAFETY: the CPU has AVX2 (caller).
+                    unsafe { d.lines(drain_per) };
+                }
+            }
+            // SAFETY: x, v are plain arrays of 8 f64.
+            unsafe {
+                _mm256_storeu_pd(x.as_mut_ptr(), xv[0]);
+                _mm256_storeu_pd(x.as_mut_ptr().add(V), xv[1]);
+                _mm256_storeu_pd(v.as_mut_ptr(), vv[0]);
+                _mm256_storeu_pd(v.as_mut_ptr().add(V), vv[1]);
+            }
+            let zr: [&[T]; L] = std::array::from_fn(|l| &zb[l * n..(l + 1) * n]);
+            {
+                let mut xr = dx.chunks_exact_mut(n);
+                let mut vr = dv.chunks_exact_mut(n);
+                let mut xr: [&mut [T]; L] = std::array::from_fn(|_| xr.next().unwrap_or(&mut []));
+                let mut vr: [&mut [T]; L] = std::array::from_fn(|_| vr.next().unwrap_or(&mut []));
+                let from = kmax + nq * V;
+                scalar_steps(&c, &mut x, &mut v, &zr, &mut xr, &mut vr, [from; L], [n; L]);
+            }
+            for (l, st) in sts.iter_mut().enumerate() {
+                st.x[0] = x[l];
+                st.x[1] = v[l];
+            }
+        }
+        if nt {
+            // SAFETY: the CPU has AVX2 (caller); the drained stage is the
+            // other one; stage `cur` is not written until it has drained.
+            unsafe {
+                let [dxo, dvo] = &mut drains;
+                drains = [
+                    Some(Drain::follow(dxo, ox, sp.add(2 * cur * seg))),
+                    Some(Drain::follow(dvo, ov, sp.add((2 * cur + 1) * seg))),
+                ];
+            }
+            cur ^= 1;
+        }
+        j0 += L;
+    }
+    if nt {
+        // SAFETY: the CPU has AVX2 (caller).
+        unsafe {
+            for d in drains.iter_mut().flatten() {
+                d.finish();
+            }
+        }
+        _mm_sfence();
+    }
+    drop(stage);
+    Ok(())
+}
+
+/// Group `g`'s constants (lanes `4 g .. 4 g + 4` of `c`).
+#[inline]
+#[target_feature(enable = "avx2")]
+fn consts(c: &[AbConst; AB_LANES], g: usize) -> Consts {
+    let lane = |f: fn(&AbConst) -> f64| {
+        _mm256_set_pd(
+            f(&c[4 * g + 3]),
+            f(&c[4 * g + 2]),
+            f(&c[4 * g + 1]),
+            f(&c[4 * g]),
+        )
+    };
+    Consts {
+        t: lane(|c| c.t),
+        alpha: lane(|c| c.alpha),
+        oma: lane(|c| c.one_minus_alpha),
+        g2: lane(|c| c.g2),
+    }
+}
+
+/// A stage on its way to the outputs: the whole 64-byte lines streamed
+/// past the caches a few at a time ([`Drain::lines`]). The partial line at
+/// the start is completed with the previous drain's partial line at its end
+/// when the two are contiguous (consecutive row groups) and streamed whole;
+/// otherwise, and at the end of a call ([`Drain::finish`]), partial lines
+/// get plain stores (a plain store to a line not in the caches waits for
+/// the line to be read, and the stores behind it wait too).
+struct Drain<T> {
+    dst: *mut T,
+    src: *const T,
+    /// Next line (elements from `dst`), end of the whole lines.
+    at: usize,
+    end: usize,
+    /// The elements after `end` (fewer than a line), not yet stored.
+    tail: [T; 16],
+    tail_len: usize,
+}
+
+impl<T: IoFloat> Drain<T> {
+    /// Start copying `dst.len()` elements from `src` to `dst`, after
+    /// finishing `prev` (whose pending partial line is joined with this
+    /// one's first one if they meet).
+    ///
+    /// # Safety
+    /// AVX is available; `src` has `dst.len()` readable elements, not
+    /// written (and `dst` not accessed otherwise) until the drain is
+    /// finished; `prev`'s contract holds.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn follow(prev: &mut Option<Self>, dst: &mut [T], src: *const T) -> Self {
+        let len = dst.len();
+        let es = std::mem::size_of::<T>().max(1);
+        let line = 64 / es;
+        // SAFETY: forwarded from the caller.
+        let src_s = unsafe { std::slice::from_raw_parts(src, len) };
+        let head = (((64 - (dst.as_ptr() as usize) % 64) % 64) / es).min(len);
+        let end = head + (len - head) / line * line;
+        let mut joined = false;
+        if let Some(p) = prev.as_mut() {
+            // SAFETY: forwarded from the caller.
+            unsafe { p.lines(usize::MAX) };
+            // SAFETY (pointer only): one past p's last element.
+            let p_end = p.dst.wrapping_add(p.end + p.tail_len);
+            if head > 0 && p.tail_len + head == line && p_end == dst.as_mut_ptr() {
+                let mut buf = p.tail;
+                buf[p.tail_len..line].copy_from_slice(&src_s[..head]);
+                // SAFETY: p.dst + p.end is line-aligned, and the line is
+                // p's tail followed by this head.
+                unsafe { copy_line(p.dst.add(p.end), buf.as_ptr(), true) };
+                p.tail_len = 0;
+                joined = true;
+            }
+            // SAFETY: forwarded from the caller.
+            unsafe { p.finish() };
+        }
+        if !joined {
+            dst[..head].copy_from_slice(&src_s[..head]);
+        }
+        let mut tail = [T::from_f64(0.0); 16];
+        tail[..len - end].copy_from_slice(&src_s[end..]);
+        Drain {
+            dst: dst.as_mut_ptr(),
+            src,
+            at: head,
+            end,
+            tail,
+            tail_len: len - end,
+        }
+    }
+
+    /// Stream the remaining lines and store the pending partial line.
+    ///
+    /// # Safety
+    /// AVX is available; the contract of [`Drain::follow`].
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn finish(&mut self) {
+        // SAFETY: forwarded from the caller; the tail's elements are
+        // `end..end + tail_len` of dst.
+        unsafe {
+            self.lines(usize::MAX);
+            std::ptr::copy_nonoverlapping(
+                self.tail.as_ptr(),
+                self.dst.add(self.end),
+                self.tail_len,
+            );
+        }
+        self.tail_len = 0;
+    }
+
+    fn lines_left(&self) -> usize {
+        (self.end - self.at) * std::mem::size_of::<T>() / 64
+    }
+
+    /// Stream up to `k` more lines.
+    ///
+    /// # Safety
+    /// AVX is available.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn lines(&mut self, k: usize) {
+        let step = 64 / std::mem::size_of::<T>().max(1);
+        for _ in 0..k {
+            if self.at >= self.end {
+                break;
+            }
+            // SAFETY: at + step <= end elements of both (`new`); dst + at is
+            // 64-byte aligned (after the head).
+            unsafe { copy_line(self.dst.add(self.at), self.src.add(self.at), true) };
+            self.at += step;
         }
     }
 }

@@ -502,6 +502,21 @@ fn flat_avx2_case<T: IoFloat>(
     given: bool,
     nt: bool,
 ) {
+    flat_or_rows_case::<T>(lens, off, shared, init, given, nt, false)
+}
+
+/// [`flat_avx2_case`] with the short-row lanes (`avx2::ab_short_rows`)
+/// instead of the flat kernel if `rows` (all `lens` equal).
+#[cfg(target_arch = "x86_64")]
+fn flat_or_rows_case<T: IoFloat>(
+    lens: &[usize],
+    off: usize,
+    shared: bool,
+    init: Init,
+    given: bool,
+    nt: bool,
+    rows: bool,
+) {
     let n_tracks = lens.len();
     let mut offs = vec![0usize];
     for &l in lens {
@@ -586,26 +601,49 @@ fn flat_avx2_case<T: IoFloat>(
         ))
     };
     // SAFETY: the caller checked AVX2 and FMA; T is f32 or f64.
-    unsafe {
-        flatv::ab_flat_avx2(
-            &konst,
-            shared,
-            &mut start,
-            &offs,
-            &z,
-            &mut xb[off..off + total],
-            &mut vb[2 * off + 1..2 * off + 1 + total],
-            &mut sb,
-            nt,
-        )
+    if rows {
+        let n = lens.first().copied().unwrap_or(0);
+        assert!(lens.iter().all(|&l| l == n));
+        unsafe {
+            super::avx2::ab_short_rows(
+                &par,
+                step_init,
+                n,
+                &z,
+                &mut xb[off..off + total],
+                &mut vb[2 * off + 1..2 * off + 1 + total],
+                &mut sb,
+                nt,
+            )
+        }
+        .unwrap();
+    } else {
+        // SAFETY: the caller checked AVX2 and FMA; T is f32 or f64.
+        unsafe {
+            flatv::ab_flat_avx2(
+                &konst,
+                shared,
+                &mut start,
+                &offs,
+                &z,
+                &mut xb[off..off + total],
+                &mut vb[2 * off + 1..2 * off + 1 + total],
+                &mut sb,
+                nt,
+            )
+        }
+        .unwrap();
     }
-    .unwrap();
     let bits = |a: &[T], b: &[T]| {
         a.iter()
             .zip(b)
             .position(|(p, q)| p.to_f64().to_bits() != q.to_f64().to_bits())
     };
-    let what = format!("off {off} shared {shared} nt {nt} lens {}", lens.len());
+    let what = format!(
+        "off {off} shared {shared} nt {nt} rows {rows} lens {} x {}",
+        lens.len(),
+        lens.first().copied().unwrap_or(0)
+    );
     assert_eq!(bits(&xb[off..off + total], &xr), None, "x {what}");
     assert_eq!(
         bits(&vb[2 * off + 1..2 * off + 1 + total], &vr),
@@ -651,6 +689,45 @@ fn flat_avx2_kernel_is_bit_identical_to_tracks_alone() {
         for (init, given) in [(Init::First, false), (Init::TwoPoint, true)] {
             flat_avx2_case::<f64>(lens, 5, false, init, given, false);
             flat_avx2_case::<f32>(lens, 9, true, init, given, true);
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn short_row_lanes_are_bit_identical_to_tracks_alone() {
+    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+        eprintln!("no AVX2+FMA on this CPU: the AVX2 short-row lanes not tested");
+        return;
+    }
+    // Row counts with and without left-over rows (fewer than 8), row
+    // lengths with no lane steps, one quarter, odd quarters and scalar
+    // tails; outputs at element offsets (partial lines joined across row
+    // groups when streamed).
+    for (ntr, n) in [
+        (0, 10),
+        (5, 40),
+        (8, 1),
+        (8, 9),
+        (16, 11),
+        (17, 13),
+        (64, 100),
+        (41, 255),
+        (203, 37),
+        (24, 64),
+    ] {
+        let lens = vec![n; ntr];
+        for off in [0, 1, 3, 7, 13] {
+            for shared in [true, false] {
+                for nt in [false, true] {
+                    flat_or_rows_case::<f64>(&lens, off, shared, Init::TwoPoint, false, nt, true);
+                    flat_or_rows_case::<f32>(&lens, off, shared, Init::TwoPoint, false, nt, true);
+                }
+            }
+        }
+        for (init, given) in [(Init::First, false), (Init::TwoPoint, true)] {
+            flat_or_rows_case::<f64>(&lens, 5, false, init, given, true, true);
+            flat_or_rows_case::<f32>(&lens, 9, true, init, given, false, true);
         }
     }
 }
