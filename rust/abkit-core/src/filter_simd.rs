@@ -474,6 +474,9 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     let mut x: [__m256d; N] =
         std::array::from_fn(|i| _mm256_set_pd(xs[3][i], xs[2][i], xs[1][i], xs[0][i]));
     let zero = _mm256_setzero_pd();
+    // Block outputs (every entry read is written in the same block; made
+    // once: zeroing it per block cost a 1.5 KiB memset per block).
+    let mut outv = [[zero; BMAX]; N];
     for b in 0..blocks {
         if let Some((dz, dout)) = ahead {
             for l in 0..L {
@@ -486,7 +489,6 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                 }
             }
         }
-        let mut outv = [[zero; BMAX]; N];
         for h in 0..bs / L {
             // zs[s][c]: component c of each lane's sample k[l] + b bs + h L + s.
             let mut zs = [[zero; M]; L];
@@ -706,9 +708,11 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
     let rp: [*const T; L] = std::array::from_fn(|l| rows[l].as_ptr());
     let op: [[*mut T; N]; L] =
         std::array::from_fn(|l| std::array::from_fn(|i| group[l].2.states[i].as_mut_ptr()));
+    // outv[i][h][s]: component i after sample h W + s of the block (made
+    // once, as in `gen_lanes4`: every entry stored is written in the block,
+    // and the unused half of an `f64` block stays zero).
+    let mut outv = [[[zero; W]; 2]; N];
     for b in 0..blocks {
-        // outv[i][h][s]: component i after sample h W + s of the block.
-        let mut outv = [[[zero; W]; 2]; N];
         for h in 0..sb / W {
             if let Some((dz, dout)) = ahead {
                 for l in 0..L {
