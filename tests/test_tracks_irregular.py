@@ -355,3 +355,27 @@ def test_transient_kalman_rejects_track_keywords():
     f = AlphaBetaFilter.from_design(alphabeta.from_snr(0.1), T=1.0, transient="kalman")
     with pytest.raises(ValueError, match="transient='kalman' does not support"):
         f.run(np.arange(5.0), t=np.arange(5.0))
+
+
+@pytest.mark.parametrize("max_gap", [None, 5.0])
+@pytest.mark.parametrize("ragged", [False, True])
+@pytest.mark.parametrize("law", ["design", "fixed"])
+def test_inf_measurement_with_timestamps_is_named(max_gap, ragged, law):
+    # An Inf in z is an error naming its track and sample, with timestamps
+    # too: found from the final states after the run without max_gap, by a
+    # scan before the run with it (a restart after the Inf would forget it:
+    # track 2 has a 100 s gap after the Inf).
+    rng = np.random.default_rng(3)
+    z = rng.normal(size=(4, 50)).cumsum(1)
+    t = np.cumsum(rng.uniform(0.5, 1.5, (4, 50)), axis=1)
+    t[2, 20:] += 100.0
+    z[2, 17] = -np.inf
+    design = AlphaBetaFilter.from_noise(1.0, 2.0, 1.0)
+    f = design if law == "design" else AlphaBetaFilter(design.alpha, design.beta, 1.0)
+    kw = dict(t=t.reshape(-1), offsets=np.arange(5) * 50) if ragged else dict(t=t)
+    zz = z.reshape(-1) if ragged else z
+    with pytest.raises(ValueError, match=r"track 2, sample 17: z must be finite or NaN \(a missed detection\), got -inf"):
+        f.run(zz, max_gap=max_gap, **kw)
+    z[2, 17] = 1.0
+    r = f.run(zz, max_gap=max_gap, **kw)
+    assert np.all(np.isfinite(r.position))

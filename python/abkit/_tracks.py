@@ -228,9 +228,10 @@ def run_tracks(
         off = np.arange(n_tracks + 1, dtype=np.int64) * n_samples
         sample_shape = (n_samples,) if single else (n_tracks, n_samples)
     z3 = _aligned(z3)
-    if t is not None:
-        # With timestamps a track may restart (max_gap) and forget an Inf:
-        # scan z first.
+    if gap is not None:
+        # A track may restart (max_gap) and forget an Inf: scan z first.
+        # Otherwise an Inf stays in its track's state to the end and is
+        # found from the final states after the run (no pass over z).
         check_no_inf(z3, off)
     f._check_params(n_tracks)
     t_arr = None
@@ -256,7 +257,7 @@ def run_tracks(
         float(tn[0]), init_mode, gap, drop, packed, out2, counts, res2,
         None if threads is None else int(threads), smoother, smoother_params, lag,
     )
-    if t is None:
+    if gap is None:
         check_no_inf_after(f, z3, off, packed)
     residuals = None
     if res2 is not None:
