@@ -69,6 +69,21 @@ fn transpose4(r: &mut [__m256d; V]) {
     r[3] = _mm256_permute2f128_pd::<0x31>(t1, t3);
 }
 
+/// In-place transpose of the 4 x 4 `f32` matrix whose rows are `r`
+/// (in-lane shuffles only).
+#[inline]
+#[target_feature(enable = "avx2")]
+fn transpose4_ps(r: &mut [__m128; V]) {
+    let t0 = _mm_unpacklo_ps(r[0], r[1]);
+    let t1 = _mm_unpacklo_ps(r[2], r[3]);
+    let t2 = _mm_unpackhi_ps(r[0], r[1]);
+    let t3 = _mm_unpackhi_ps(r[2], r[3]);
+    r[0] = _mm_movelh_ps(t0, t1);
+    r[1] = _mm_movehl_ps(t1, t0);
+    r[2] = _mm_movelh_ps(t2, t3);
+    r[3] = _mm_movehl_ps(t3, t2);
+}
+
 /// Per-slot constants of four lanes.
 #[derive(Clone, Copy)]
 pub(super) struct Consts {
@@ -290,16 +305,29 @@ pub(super) unsafe fn group_block<T: IoFloat, const NT: bool>(
         let zero = _mm256_setzero_pd();
         for q in 0..sb / V {
             let at = q * V;
-            let mut r: [__m256d; V] = std::array::from_fn(|i| unsafe { load4(rows.z[i].add(at)) });
             // unord(a, b) is set where a or b is NaN.
-            let nan = _mm256_or_pd(
-                _mm256_cmp_pd::<_CMP_UNORD_Q>(r[0], r[1]),
-                _mm256_cmp_pd::<_CMP_UNORD_Q>(r[2], r[3]),
-            );
-            transpose4(&mut r);
+            let (r, any_nan) = if is_f64::<T>() {
+                let mut r: [__m256d; V] =
+                    std::array::from_fn(|i| unsafe { load4(rows.z[i].add(at)) });
+                let nan = _mm256_or_pd(
+                    _mm256_cmp_pd::<_CMP_UNORD_Q>(r[0], r[1]),
+                    _mm256_cmp_pd::<_CMP_UNORD_Q>(r[2], r[3]),
+                );
+                transpose4(&mut r);
+                (r, _mm256_movemask_pd(nan) != 0)
+            } else {
+                // f32: transposed as f32 (in-lane shuffles), then widened
+                // (exact), so the steps see the same values.
+                let mut r: [__m128; V] = std::array::from_fn(|i| unsafe {
+                    _mm_loadu_ps(rows.z[i].add(at) as *const f32)
+                });
+                let nan = _mm_or_ps(_mm_cmpunord_ps(r[0], r[1]), _mm_cmpunord_ps(r[2], r[3]));
+                transpose4_ps(&mut r);
+                (r.map(|v| _mm256_cvtps_pd(v)), _mm_movemask_ps(nan) != 0)
+            };
             let mut xo = [zero; V];
             let mut vo = [zero; V];
-            if _mm256_movemask_pd(nan) == 0 {
+            if !any_nan {
                 for j in 0..V {
                     step_clean(c, x, v, r[j]);
                     xo[j] = *x;
@@ -312,15 +340,36 @@ pub(super) unsafe fn group_block<T: IoFloat, const NT: bool>(
                     vo[j] = *v;
                 }
             }
-            transpose4(&mut xo);
-            transpose4(&mut vo);
-            for i in 0..V {
-                if NT {
-                    store4::<T>(stage[i].as_mut_ptr().add(at), xo[i]);
-                    store4::<T>(stage[V + i].as_mut_ptr().add(at), vo[i]);
-                } else {
-                    store4::<T>(rows.x[i].add(at), xo[i]);
-                    store4::<T>(rows.v[i].add(at), vo[i]);
+            if is_f64::<T>() {
+                transpose4(&mut xo);
+                transpose4(&mut vo);
+                for i in 0..V {
+                    if NT {
+                        store4::<T>(stage[i].as_mut_ptr().add(at), xo[i]);
+                        store4::<T>(stage[V + i].as_mut_ptr().add(at), vo[i]);
+                    } else {
+                        store4::<T>(rows.x[i].add(at), xo[i]);
+                        store4::<T>(rows.v[i].add(at), vo[i]);
+                    }
+                }
+            } else {
+                // f32: narrowed per step (round to nearest, as a narrowing
+                // after the transpose would), transposed as f32.
+                let mut xq = xo.map(|v| _mm256_cvtpd_ps(v));
+                let mut vq = vo.map(|v| _mm256_cvtpd_ps(v));
+                transpose4_ps(&mut xq);
+                transpose4_ps(&mut vq);
+                for i in 0..V {
+                    let (px, pv) = if NT {
+                        (
+                            stage[i].as_mut_ptr().add(at),
+                            stage[V + i].as_mut_ptr().add(at),
+                        )
+                    } else {
+                        (rows.x[i].add(at), rows.v[i].add(at))
+                    };
+                    _mm_storeu_ps(px as *mut f32, xq[i]);
+                    _mm_storeu_ps(pv as *mut f32, vq[i]);
                 }
             }
         }
