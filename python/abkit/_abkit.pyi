@@ -25,6 +25,7 @@ __all__ = [
     "alphabeta_from_tracking_index",
     "filter_alphabeta",
     "filter_fixed_gain",
+    "prefault",
     "kalman_gain_sequence",
     "kalman_run",
     "riccati_kalman_steady_state",
@@ -126,6 +127,7 @@ def filter_feed(
     resid: _FArr | None = None,
     threads: int | None = None,
 ) -> None: ...
+def prefault(buf: npt.NDArray[np.uint8], threads: int | None = None) -> None: ...
 def time_order(t: _F64, threads: int | None = None) -> npt.NDArray[np.int64]: ...
 def filter_tracks(
     z: _FArr,

@@ -247,7 +247,7 @@ def run_tracks(
         packed[:, T_HELD] = np.nan
     zarr = z
     shape = sample_shape
-    o = f._out(out, zarr, z3, shape)
+    o = f._out(out, zarr, z3, shape, threads)
     out2 = o.reshape(f.n, n_total)
     res2 = np.empty((n_total, m), dtype=z3.dtype) if return_residuals else None
     counts = np.zeros((n_tracks, 2), dtype=np.int64)

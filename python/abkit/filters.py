@@ -201,18 +201,18 @@ class FilterResult:
 _PREFAULT_BYTES = 64 << 20
 
 
-def fresh_output(shape: Tuple[int, ...], dtype: Any) -> np.ndarray:
+def fresh_output(shape: Tuple[int, ...], dtype: Any, threads: Optional[int] = None) -> np.ndarray:
     """A new output array for the kernels. Big outputs are written by the
     kernels with non-temporal stores, which are slow on pages that are not
     mapped yet (every first touch of a page is a fault in the middle of a
-    streamed line): those pages are faulted in first, by touching one
-    element per 4 KiB page (the same cost as any first use of fresh memory),
-    so filtering without ``out=`` costs filtering with ``out=`` plus the
-    allocation."""
+    streamed line): those pages are faulted in first, by touching one byte
+    per 4 KiB page (the same cost as any first use of fresh memory), in Rust
+    on rayon's pool with the call's ``threads`` (the kernel zeroing the new
+    pages is the cost, and it runs on every core), so filtering without
+    ``out=`` costs filtering with ``out=`` plus the allocation."""
     o = np.empty(shape, dtype=dtype)
     if o.nbytes >= _PREFAULT_BYTES:
-        flat = o.reshape(-1)
-        flat[:: max(1, 4096 // o.itemsize)] = 0
+        _abkit.prefault(o.reshape(-1).view(np.uint8), threads)
     return o
 
 
@@ -450,10 +450,10 @@ class FixedGainFilter:
         if self.n_params not in (1, n_tracks):
             raise ValueError(f"the filter has {self.n_params} per-track parameter sets but z has {n_tracks} tracks")
 
-    def _out(self, out: Any, z: np.ndarray, z3: np.ndarray, shape: Tuple[int, ...]) -> np.ndarray:
+    def _out(self, out: Any, z: np.ndarray, z3: np.ndarray, shape: Tuple[int, ...], threads: Optional[int] = None) -> np.ndarray:
         want = (self.n,) + shape
         if out is None:
-            return fresh_output(want, z.dtype)
+            return fresh_output(want, z.dtype, threads)
         if not isinstance(out, np.ndarray):
             raise TypeError(f"out must be a numpy array, got {type(out).__name__}")
         if out.shape != want or out.dtype != z.dtype:
@@ -632,7 +632,7 @@ class FixedGainFilter:
         packed, init_mode = self._initial_state(init, state, n_tracks)
         zarr = z if isinstance(z, np.ndarray) else z3
         shape = (n_samples,) if single else (n_tracks, n_samples)
-        o = self._out(out, zarr, z3, shape)
+        o = self._out(out, zarr, z3, shape, threads)
         out3 = o.reshape((self.n, n_tracks, n_samples))
         res3 = None
         if return_residuals:

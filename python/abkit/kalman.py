@@ -196,7 +196,7 @@ class KalmanFilter:
         shape = (n_samples,) if single else (n_tracks, n_samples)
         want = (self.n,) + shape
         if out is None:
-            o = fresh_output(want, z3.dtype)
+            o = fresh_output(want, z3.dtype, threads)
         else:
             if not isinstance(out, np.ndarray) or out.shape != want or out.dtype != z3.dtype:
                 raise ValueError(f"out must be an array of shape {want} and dtype {z3.dtype}")

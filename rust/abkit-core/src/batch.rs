@@ -59,6 +59,31 @@ where
     }
 }
 
+/// Bytes per page touched by [`touch_pages`].
+pub const PAGE: usize = 4096;
+
+/// Write one zero byte per [`PAGE`] of `buf` (a fresh allocation whose pages
+/// may not be mapped yet), so that the pages are faulted in before a kernel
+/// streams its outputs into them; in parallel on rayon's pool (chunks of
+/// 2 MiB) if `parallel`. The bytes written were zero already or are
+/// overwritten by the kernel (the callers' outputs).
+pub fn touch_pages(buf: &mut [u8], parallel: bool) {
+    let touch = |c: &mut [u8]| {
+        for b in c.iter_mut().step_by(PAGE) {
+            // A volatile write: the touch must happen even if the byte is
+            // never read before the kernel writes it.
+            // SAFETY: `b` is a valid, exclusive reference to one byte.
+            unsafe { std::ptr::write_volatile(b, 0) };
+        }
+    };
+    const CHUNK: usize = 2 << 20;
+    if parallel && buf.len() > CHUNK {
+        buf.par_chunks_mut(CHUNK).for_each(touch);
+    } else {
+        touch(buf);
+    }
+}
+
 #[cfg(test)]
 #[path = "tests/batch.rs"]
 mod tests;

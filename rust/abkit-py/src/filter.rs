@@ -13,7 +13,7 @@ use abkit_core::filter::{
 use numpy::ndarray::ArrayView3;
 use numpy::{
     Element, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
-    PyReadonlyArray3,
+    PyReadonlyArray3, PyReadwriteArray1,
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -93,6 +93,20 @@ fn pool(k: usize) -> PyResult<Arc<rayon::ThreadPool>> {
 
 /// Run `f(parallel)` per the `threads` argument: None = rayon's global pool,
 /// 1 = this thread, k = a cached pool of k threads.
+/// Fault in the pages of a fresh output buffer (`buf`: its bytes), one
+/// write per 4 KiB page, on rayon's pool unless `threads == 1`.
+#[pyfunction]
+#[pyo3(signature = (buf, threads=None))]
+pub(crate) fn prefault<'py>(
+    py: Python<'py>,
+    mut buf: PyReadwriteArray1<'py, u8>,
+    threads: Option<usize>,
+) -> PyResult<()> {
+    let s = buf.as_slice_mut()?;
+    py.detach(|| guard(|| with_threads(threads, |par| abkit_core::batch::touch_pages(s, par))))??;
+    Ok(())
+}
+
 pub(crate) fn with_threads<R: Send>(
     threads: Option<usize>,
     f: impl FnOnce(bool) -> R + Send,

@@ -36,3 +36,17 @@ fn length_mismatch_is_an_error() {
     let mut out = [0.0; 2];
     assert!(map_rows([&a[..], &b[..]], 1, &mut out, |_, _| Ok(())).is_err());
 }
+
+#[test]
+fn touch_pages_writes_one_zero_per_page() {
+    for parallel in [false, true] {
+        for len in [0usize, 1, 4095, 4096, 4097, (5 << 20) + 123] {
+            let mut buf = vec![7u8; len];
+            touch_pages(&mut buf, parallel);
+            for (i, &b) in buf.iter().enumerate() {
+                let want = if i % PAGE == 0 { 0 } else { 7 };
+                assert_eq!(b, want, "byte {i} of {len} (parallel {parallel})");
+            }
+        }
+    }
+}
