@@ -91,8 +91,6 @@ fn pool(k: usize) -> PyResult<Arc<rayon::ThreadPool>> {
     Ok(p)
 }
 
-/// Run `f(parallel)` per the `threads` argument: None = rayon's global pool,
-/// 1 = this thread, k = a cached pool of k threads.
 /// Fault in the pages of a fresh output buffer (`buf`: its bytes), one
 /// write per 4 KiB page, on rayon's pool unless `threads == 1`.
 #[pyfunction]
@@ -107,6 +105,8 @@ pub(crate) fn prefault<'py>(
     Ok(())
 }
 
+/// Run `f(parallel)` per the `threads` argument: None = rayon's global pool,
+/// 1 = this thread, k = a cached pool of k threads.
 pub(crate) fn with_threads<R: Send>(
     threads: Option<usize>,
     f: impl FnOnce(bool) -> R + Send,
