@@ -25,7 +25,14 @@
 //!
 //! As in the AVX-512 lanes, every lane first steps (scalar) to a sample
 //! whose `x` output starts a cache line, so the stores are aligned and, for
-//! outputs too big for the caches, non-temporal.
+//! outputs too big for the caches, non-temporal. `f32` rows are transposed
+//! as `f32` (in-lane shuffles) and widened after; outputs are narrowed per
+//! step and transposed as `f32` (the same values either way).
+//!
+//! Short rows ([`ab_short_rows`]) run eight consecutive rows in the same
+//! two groups, the outputs either written directly or, when streamed,
+//! staged and written out whole lines at a time while the lanes fill the
+//! other stage.
 
 use std::arch::x86_64::*;
 
@@ -285,9 +292,9 @@ pub(super) struct Rows<T> {
 ///
 /// # Safety
 /// Called only from functions compiled with AVX2 and FMA (always inlined);
-/// `sb` is 8 (`f64`) or 16 (`f32`) if `NT`, else a multiple of 4 up to 16; each lane has `sb` readable `z` and
-/// `sb` writable `x` and `v` elements at its pointers; a streamed line is
-/// 32-byte aligned.
+/// `sb` is 8 (`f64`) or 16 (`f32`) if `NT`, else a multiple of 4 up to
+/// 16; each lane has `sb` readable `z` and `sb` writable `x` and `v`
+/// elements at its pointers; a streamed line is 32-byte aligned.
 #[allow(unused_unsafe)]
 #[inline(always)]
 pub(super) unsafe fn group_block<T: IoFloat, const NT: bool>(
