@@ -538,7 +538,7 @@ fn scalar_steps<T: IoFloat>(
 /// outputs are one contiguous region, so there are no scalar heads to
 /// line-aligned outputs and partial lines only at the ends of a call.
 /// Rows left over (fewer than eight) and groups with a row that does not
-/// run take the scalar loop. Every step is `ab_step::<true>`
+/// run take the scalar loop (through the stage too, when streamed). Every step is `ab_step::<true>`
 /// (bit-identical to the scalar lanes and to the flat kernel).
 ///
 /// In the caches this runs 1.3-1.5x faster than the flat kernel (two
@@ -597,29 +597,6 @@ pub(super) unsafe fn ab_short_rows<T: IoFloat>(
             )
         };
         let sts = &mut states[j0..j0 + rows];
-        if rows < L {
-            // Left-over rows: each alone, straight into the outputs.
-            for (l, st) in sts.iter_mut().enumerate() {
-                let zr = &zb[l * n..(l + 1) * n];
-                let (a, b, t) = params(j0 + l);
-                let mut o = TrackOut {
-                    states: [&mut ox[l * n..(l + 1) * n], &mut ov[l * n..(l + 1) * n]],
-                    resid: None,
-                };
-                let k0 = ab_start::<T>(a, b, t, init, st, n, &|k| zr[k].to_f64(), &mut o);
-                if st.phase >= 2.0 {
-                    ab_loop::<T, true>(
-                        &AbConst::new(a, b, t),
-                        st,
-                        k0,
-                        n,
-                        |k| zr[k].to_f64(),
-                        &mut o,
-                    );
-                }
-            }
-            break;
-        }
         // Streamed: through the stage; else straight into the outputs.
         let (dx, dv): (&mut [T], &mut [T]) = if nt {
             // SAFETY: stage `cur` (x: segment 2 cur, v: 2 cur + 1) is
@@ -627,8 +604,8 @@ pub(super) unsafe fn ab_short_rows<T: IoFloat>(
             // accesses go through `sp`.
             unsafe {
                 (
-                    std::slice::from_raw_parts_mut(sp.add(2 * cur * seg), seg),
-                    std::slice::from_raw_parts_mut(sp.add((2 * cur + 1) * seg), seg),
+                    std::slice::from_raw_parts_mut(sp.add(2 * cur * seg), rows * n),
+                    std::slice::from_raw_parts_mut(sp.add((2 * cur + 1) * seg), rows * n),
                 )
             }
         } else {
@@ -646,7 +623,9 @@ pub(super) unsafe fn ab_short_rows<T: IoFloat>(
             };
             k0[l] = ab_start::<T>(a, b, t, init, st, n, &|k| zr[k].to_f64(), &mut o);
         }
-        let running = sts.iter().all(|s| s.phase >= 2.0);
+        // Left-over rows (fewer than eight) run alone, like a group with a
+        // row that does not run.
+        let running = rows == L && sts.iter().all(|s| s.phase >= 2.0);
         let kmax = if running {
             k0.iter().copied().max().unwrap_or(n)
         } else {
@@ -654,7 +633,8 @@ pub(super) unsafe fn ab_short_rows<T: IoFloat>(
         };
         let nq = (n - kmax) / V;
         if nq < 2 {
-            // Scalar rows (a row that does not run, or too few samples).
+            // Scalar rows (left-over rows, a row that does not run, or too
+            // few samples).
             for (l, st) in sts.iter_mut().enumerate() {
                 if st.phase < 2.0 {
                     continue;
