@@ -194,23 +194,35 @@ impl AbDesign {
 /// and `beta` to 2 long before).
 pub const AB_DESIGN_BIG_SQRT: f64 = 1e150;
 
+/// `sqrt` of the tracking index up to which [`ab_design_rate_gains`] forms
+/// `w = (q - m) / 4` by a subtraction (`lambda <= 4`, beyond the usual
+/// tracking range), above it as `2 / (m + q)` (the same number:
+/// `(q - m)(q + m) = q^2 - m^2 = 8`; the subtraction's relative error grows
+/// like `m^2`: max relative error of `alpha` and `beta / dt` 5.5e-16 for
+/// `m <= 2` against 660-digit arithmetic, 1.4e-15 for `2 < m <= 4` and
+/// 3e-15 up to 8 by the subtraction).
+pub const AB_DESIGN_SMALL_SQRT: f64 = 2.0;
+
 /// `(alpha, beta / dt)` of the steady-state Kalman alpha-beta design at
 /// `dt` (`ratio = sigma_w / sigma_v`, `sqrt_ratio = sqrt(ratio)`), with one
-/// square root, one division and thirteen other operations (the
-/// irregular-timestamp kernels evaluate it at every step).
+/// square root, no division for `lambda <= 4` (one above) and seven other
+/// operations (the irregular-timestamp kernels evaluate it at every step).
 ///
 /// Paper 000's closed form in the tracking index `lambda = ratio dt^2`
 /// (as in [`crate::alphabeta::kalman_uv_from_lambda`]):
 /// `u = sqrt(1 - alpha) = 4 / d`, `v = 1 - u = (lambda + S) / d`,
 /// `S = sqrt(lambda (lambda + 8))`, `d = lambda + S + 4`, `beta = 2 v^2`.
-/// Here in `m = sqrt(lambda) = sqrt(ratio) dt`: with `q = sqrt(m^2 + 8)` and
-/// `p = m + q`, `lambda + S = m p`, so `d = m p + 4`, `r = 1 / d`,
-/// `u = 4 r`, `v = m (p r)`, `alpha = v (1 + u)` (capped at 1) and, since
-/// `m / dt = sqrt(ratio)`, `beta / dt = 2 v^2 / dt = (2 sqrt(ratio)) v (p r)`
-/// without a division by `dt`. Every term is a sum or product of
-/// non-negative numbers (no cancellation): each result is within a few
-/// ulp of the exact design (2e-15 relative, checked against 50-digit
-/// arithmetic in the tests), also where `lambda` underflows (`m` does not).
+/// Here in `m = sqrt(lambda) = sqrt(ratio) dt`: with `q = sqrt(m^2 + 8)`,
+/// `lambda + S = m (m + q)`, so `v = m (m + q) / (m (m + q) + 4)`
+/// `= m w`, `w = (q - m) / 4 = 2 / (m + q)` (multiply out:
+/// `(q - m)(q + m) = 8`); then `alpha = 1 - u^2 = v (2 - v)` and, since
+/// `m / dt = sqrt(ratio)`, `beta / dt = 2 v^2 / dt = (2 sqrt(ratio)) v w`
+/// without a division by `dt`. `w` by the subtraction for
+/// `m <= `[`AB_DESIGN_SMALL_SQRT`] (`q - m >= 1.4`: no cancellation), by
+/// the division above it; `2 - v` is in `[1, 2]`. Each result is within a
+/// few ulp of the exact design (5.5e-16 relative against 660-digit
+/// arithmetic, also where `lambda` underflows: `m` does not), and
+/// `alpha <= 1` (capped, for the rounding of `v` near 1).
 /// `m >= `[`AB_DESIGN_BIG_SQRT`] gives the limit `(1, 2 / dt)`. No fused
 /// operations: the same bits on every CPU.
 ///
@@ -223,13 +235,14 @@ pub fn ab_design_rate_gains(sqrt_ratio: f64, dt: f64) -> (f64, f64) {
         return (1.0, 2.0 / dt);
     }
     let q = (m * m + 8.0).sqrt();
-    let p = m + q;
-    let r = 1.0 / (m * p + 4.0);
-    let u = 4.0 * r;
-    let pr = p * r;
-    let v = m * pr;
-    let alpha = (v * (1.0 + u)).min(1.0);
-    (alpha, (2.0 * sqrt_ratio) * (v * pr))
+    let w = if m <= AB_DESIGN_SMALL_SQRT {
+        (q - m) * 0.25
+    } else {
+        2.0 / (m + q)
+    };
+    let v = m * w;
+    let alpha = (v * (2.0 - v)).min(1.0);
+    (alpha, (2.0 * sqrt_ratio) * (v * w))
 }
 
 impl GainLaw<2, 1> for AbDesign {

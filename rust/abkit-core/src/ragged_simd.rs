@@ -24,7 +24,8 @@
 //!
 //! - fixed (`AbFixed`): `K = [alpha, beta / dt]`: one division per step;
 //! - design (`AbDesign`): [`crate::irregular::ab_design_rate_gains`]:
-//!   `lambda = ratio dt^2`, one square root, one division (the rate gain
+//!   `lambda = ratio dt^2`, one square root, no division for `lambda <= 4`
+//!   (one above; the rate gain
 //!   `beta / dt` is formed without dividing by `dt`), the limit `(1, 2 / dt)`
 //!   blended in only for `lambda >= 1e300`. (Before: the two-branch closed
 //!   form of `kalman_uv_from_lambda` and `beta / dt`: two or three square
@@ -209,7 +210,6 @@ pub(crate) trait Vd<const W: usize>: Copy {
     /// `self > b`, `self <= b`, `self < b`, `self >= b` (false for NaN).
     unsafe fn gt(self, b: Self) -> Self::Mask;
     unsafe fn le(self, b: Self) -> Self::Mask;
-    unsafe fn lt(self, b: Self) -> Self::Mask;
     unsafe fn ge(self, b: Self) -> Self::Mask;
     /// Not NaN.
     unsafe fn ord(self) -> Self::Mask;
@@ -294,10 +294,6 @@ impl Vd<8> for V8 {
     #[inline(always)]
     unsafe fn le(self, b: Self) -> __mmask8 {
         _mm512_cmp_pd_mask::<_CMP_LE_OQ>(self.0, b.0)
-    }
-    #[inline(always)]
-    unsafe fn lt(self, b: Self) -> __mmask8 {
-        _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.0, b.0)
     }
     #[inline(always)]
     unsafe fn ge(self, b: Self) -> __mmask8 {
@@ -468,10 +464,6 @@ impl Vd<4> for V4 {
         _mm256_cmp_pd::<_CMP_LE_OQ>(self.0, b.0)
     }
     #[inline(always)]
-    unsafe fn lt(self, b: Self) -> __m256d {
-        _mm256_cmp_pd::<_CMP_LT_OQ>(self.0, b.0)
-    }
-    #[inline(always)]
     unsafe fn ge(self, b: Self) -> __m256d {
         _mm256_cmp_pd::<_CMP_GE_OQ>(self.0, b.0)
     }
@@ -570,28 +562,36 @@ fn prefetch<T>(p: *const T) {
 
 /// `(alpha, beta / dt)` of the design law at `dt` in every slot: exactly
 /// the operations of the scalar [`crate::irregular::ab_design_rate_gains`]
-/// (`sr = sqrt(ratio)`, `c2 = 2 sr`; one square root, one division; the
-/// limit `(1, 2 / dt)` blended in for `m >= AB_DESIGN_BIG_SQRT`, only
-/// computed when a slot needs it).
+/// (`sr = sqrt(ratio)`, `c2 = 2 sr`; one square root; `w = (q - m) / 4`
+/// for `m <= AB_DESIGN_SMALL_SQRT`; the division `2 / (m + q)`, the cap of
+/// `alpha` at 1 and the limit `(1, 2 / dt)` for `m >= AB_DESIGN_BIG_SQRT`
+/// only computed when a slot needs them).
 #[inline(always)]
 unsafe fn design_gains<V: Vd<W>, const W: usize>(sr: V, c2: V, dt: V) -> (V, V) {
     // SAFETY: the caller has the CPU features of V.
     unsafe {
-        let one = V::splat(1.0);
         let m = sr.mul(dt);
         let q = m.mul(m).add(V::splat(8.0)).sqrt();
-        let p = m.add(q);
-        let r = one.div(m.mul(p).add(V::splat(4.0)));
-        let u = V::splat(4.0).mul(r);
-        let pr = p.mul(r);
-        let v = m.mul(pr);
-        let mut a = v.mul(one.add(u)).min(one);
-        let mut g = c2.mul(v.mul(pr));
-        // m >= BIG (dt is finite and > 0 here): the limit (1, 2 / dt).
-        let big = m.ge(V::splat(crate::irregular::AB_DESIGN_BIG_SQRT));
-        if !V::none(big) {
-            a = V::blend(big, a, one);
-            g = V::blend(big, g, V::splat(2.0).div(dt));
+        let mut w = q.sub(m).mul(V::splat(0.25));
+        let small = m.le(V::splat(crate::irregular::AB_DESIGN_SMALL_SQRT));
+        let all_small = V::all(small);
+        if !all_small {
+            w = V::blend(small, V::splat(2.0).div(m.add(q)), w);
+        }
+        let v = m.mul(w);
+        let mut a = v.mul(V::splat(2.0).sub(v));
+        let mut g = c2.mul(v.mul(w));
+        // For m <= SMALL alpha < 1 (v <= 0.74 there): the cap and the
+        // limit only where a slot has a larger m.
+        if !all_small {
+            let one = V::splat(1.0);
+            a = a.min(one);
+            // m >= BIG (dt is finite and > 0 here): the limit (1, 2 / dt).
+            let big = m.ge(V::splat(crate::irregular::AB_DESIGN_BIG_SQRT));
+            if !V::none(big) {
+                a = V::blend(big, a, one);
+                g = V::blend(big, g, V::splat(2.0).div(dt));
+            }
         }
         (a, g)
     }
@@ -625,8 +625,8 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
         let zero = V::splat(0.0);
         let one = V::splat(1.0);
         let nan = V::splat(f64::NAN);
-        let inf = V::splat(f64::INFINITY);
-        let gap = V::splat(max_gap);
+        // d <= min(max_gap, MAX) also excludes an infinite d.
+        let gap = V::splat(max_gap.min(f64::MAX));
         let zp: [*const T; W] = std::array::from_fn(|l| lanes[l].z.as_ptr());
         let tp: [*const f64; W] = std::array::from_fn(|l| lanes[l].t.as_ptr());
         let xp: [*mut T; W] = std::array::from_fn(|l| lanes[l].xs.as_mut_ptr());
@@ -640,9 +640,14 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
         let mut k = 0;
         while k + W <= steps {
             // Prefetch PREFETCH samples ahead in every stream of every lane
-            // (16 to 20 streams are too many for the hardware prefetchers).
-            // Prefetches never fault, so the addresses may lie past the end.
+            // (16 to 20 streams are too many for the hardware prefetchers),
+            // once per 64-byte line of f64 samples (every other block of
+            // four, every block of eight). Prefetches never fault, so the
+            // addresses may lie past the end.
             for l in 0..W {
+                if W == 4 && k % 8 != 0 {
+                    break;
+                }
                 prefetch(tp[l].wrapping_add(k + PREFETCH));
                 prefetch(zp[l].wrapping_add(k + PREFETCH));
                 prefetch(xp[l].wrapping_add(k + PREFETCH));
@@ -657,15 +662,14 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             // 0 < dt <= max_gap, dt finite.
             let mut dt = [zero; W];
             let mut prev = t_last;
-            let mut ok = true;
+            let mut ok = zero.le(zero);
             for j in 0..W {
                 let d = tv[j].sub(prev);
-                let m = V::and(V::and(d.gt(zero), d.le(gap)), d.lt(inf));
-                ok &= V::all(m);
+                ok = V::and(ok, V::and(d.gt(zero), d.le(gap)));
                 dt[j] = d;
                 prev = tv[j];
             }
-            if !ok {
+            if !V::all(ok) {
                 break;
             }
             let mut zv: [V; W] = std::array::from_fn(|l| V::load(zp[l].add(k)));

@@ -19,6 +19,32 @@ fn ab_design_matches_the_alphabeta_design_at_each_dt() {
 }
 
 #[test]
+fn ab_design_by_subtraction_is_as_accurate() {
+    // m = sqrt(lambda) <= AB_DESIGN_SMALL_SQRT forms w = 2 / (m + q) as
+    // (q - m) / 4 (no division); above it with the division. Both sides of
+    // the switch, densely, against the two-branch closed form of
+    // AlphaBeta::from_noise: within a few ulp (the subtraction alone
+    // would exceed 2e-15 above m ~ 6).
+    let (sw, sv) = (1.0, 1.0);
+    let law = AbDesign::new(sw / sv);
+    let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+    let mut worst: f64 = 0.0;
+    for i in 0..4000 {
+        // m = dt here: 1e-4 .. 10, and the switch and its neighbours.
+        let dt = match i {
+            0 => AB_DESIGN_SMALL_SQRT,
+            1 => f64::from_bits(AB_DESIGN_SMALL_SQRT.to_bits() - 1),
+            2 => f64::from_bits(AB_DESIGN_SMALL_SQRT.to_bits() + 1),
+            _ => 10f64.powf(-4.0 + 5.0 * i as f64 / 4000.0),
+        };
+        let d = AlphaBeta::from_noise(sw, sv, dt).unwrap();
+        let (a, g) = law.rate_gains(dt);
+        worst = worst.max(rel(a, d.alpha)).max(rel(g, d.beta / dt));
+    }
+    assert!(worst < 2e-15, "{worst:e}");
+}
+
+#[test]
 fn ab_design_limits_are_finite() {
     let law = AbDesign::new(1.0);
     assert_eq!(law.gains(1e-200), (0.0, 0.0));
