@@ -138,6 +138,27 @@ def test_short_rows_large_output_streamed(dtype, n):
     assert again.states is out and np.array_equal(out, flat.states, equal_nan=True)
 
 
+@pytest.mark.parametrize(
+    "dtype,ntr,n",
+    [(np.float64, 30_000, 20), (np.float64, 230_000, 20), (np.float32, 30_000, 60), (np.float32, 70_000, 9)],
+)
+def test_short_rows_in_memory_bit_identical(dtype, ntr, n):
+    # Batches bigger than the caches with rows of <= 32 samples (float32:
+    # <= 64) run in the AVX2 short-row lanes on AVX2-only CPUs (230,000 x
+    # 20 float64: outputs >= 64 MiB, streamed through the stages); every
+    # track equals the scalar row kernel's (residuals on: no flat or
+    # short-row kernel) bit for bit.
+    rng = np.random.default_rng(29)
+    z = _z(rng, (ntr, n), "random", dtype)
+    f = AlphaBetaFilter(0.45, 0.12, 1.0)
+    big = f.run(z, threads=1)
+    idx = np.r_[0:9, ntr // 2 : ntr // 2 + 17, ntr - 10 : ntr]
+    scalar = f.run(z[idx], return_residuals=True)
+    assert np.array_equal(big.states[:, idx], scalar.states, equal_nan=True)
+    assert np.array_equal(big.state._packed[idx], scalar.state._packed, equal_nan=True)
+    assert np.array_equal(f.run(z).states, big.states, equal_nan=True)
+
+
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_short_rows_smooth_bit_identical(dtype):
     rng = np.random.default_rng(29)

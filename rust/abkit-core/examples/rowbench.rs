@@ -5,11 +5,21 @@
 //! ```sh
 //! cargo run --release -p abkit-core --example rowbench -- 8 2048 20000   # in L2
 //! cargo run --release -p abkit-core --example rowbench -- 1000 10000 5   # 10^7 samples
+//! cargo run --release -p abkit-core --example rowbench -- 100000 10 20 1 # continuing (state=)
 //! ```
+//!
+//! A fourth argument `1`: every timed run continues from the previous
+//! run's final states (streaming with `state=`), instead of fresh tracks.
 use abkit_core::filter::{filter_ab, Init, IoFloat, Measurements, TrackState};
 use std::time::Instant;
 
-fn bench<F: IoFloat>(name: &str, n: usize, len: usize, reps: usize) -> abkit_core::Result<()> {
+fn bench<F: IoFloat>(
+    name: &str,
+    n: usize,
+    len: usize,
+    reps: usize,
+    cont: bool,
+) -> abkit_core::Result<()> {
     let z: Vec<F> = (0..n * len)
         .map(|i| F::from_f64((i % len) as f64 * 0.7 + ((i * 7919) % 13) as f64 * 0.1))
         .collect();
@@ -18,7 +28,9 @@ fn bench<F: IoFloat>(name: &str, n: usize, len: usize, reps: usize) -> abkit_cor
     let mut out = vec![F::from_f64(0.0); 2 * n * len];
     let mut best = f64::INFINITY;
     for _ in 0..reps {
-        states.fill(TrackState::default());
+        if !cont {
+            states.fill(TrackState::default());
+        }
         let t0 = Instant::now();
         filter_ab(
             &[(0.5, 0.2, 0.1)],
@@ -46,9 +58,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|s| s.parse::<usize>())
         .collect::<Result<Vec<_>, _>>()?;
     let &[n, len, reps, ..] = &a[..] else {
-        return Err("usage: rowbench N_TRACKS LEN REPS".into());
+        return Err("usage: rowbench N_TRACKS LEN REPS [CONTINUE]".into());
     };
-    bench::<f64>("f64", n, len, reps)?;
-    bench::<f32>("f32", n, len, reps)?;
+    let cont = a.get(3) == Some(&1);
+    bench::<f64>("f64", n, len, reps, cont)?;
+    bench::<f32>("f32", n, len, reps, cont)?;
     Ok(())
 }

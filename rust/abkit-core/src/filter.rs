@@ -809,7 +809,7 @@ fn ab_start<T: IoFloat>(
     init: Init,
     st: &mut TrackState,
     n: usize,
-    zf: &dyn Fn(usize) -> f64,
+    zf: &impl Fn(usize) -> f64,
     o: &mut TrackOut<'_, T, 2>,
 ) -> usize {
     // Fast path of the usual start: two valid samples first (same
@@ -848,7 +848,7 @@ fn ab_start<T: IoFloat>(
             return len;
         }
     }
-    let len = startup_len(init, st, n, &zf);
+    let len = startup_len(init, st, n, zf);
     if len > 0 {
         let gains = Gains::<2, 1> {
             phi: [[1.0, t], [0.0, 1.0]],
@@ -1968,12 +1968,15 @@ fn ab_flat_batch<T: IoFloat>(
     let zs = z.data.get(z.base..z.base.checked_add(total)?)?;
     let nt = streamed::<T>(2 * total * std::mem::size_of::<T>(), true);
     // The AVX2 short-row lanes where they were measured faster than the flat
-    // kernel (`avx2::ab_short_rows`): z and outputs within the caches, or
+    // kernel (`avx2::ab_short_rows`): z and outputs within the caches, rows
+    // of at most SHORT_ROWS_MEM_MAX samples (f32: twice that) in memory, or
     // f32 with streamed outputs.
+    let f32_ = !simd::is_f64::<T>();
     let rows8 = kind == FlatKernel::Avx2
         && !short_rows_flat()
         && (3 * total * std::mem::size_of::<T>() <= SHORT_ROWS_CACHED_BYTES
-            || (nt && !simd::is_f64::<T>()));
+            || n <= SHORT_ROWS_MEM_MAX
+            || (f32_ && (nt || n <= 2 * SHORT_ROWS_MEM_MAX)));
     let (xs, vs) = out.split_at_mut(total);
     // Chunks of whole tracks (the unit of parallel work); results do not
     // depend on the chunking.
@@ -2018,7 +2021,12 @@ fn ab_flat_batch<T: IoFloat>(
         if rows8 {
             // SAFETY: `flat_kernel()` checked AVX2 and FMA; T is f32 or f64
             // (`fits`).
-            unsafe { avx2::ab_short_rows(&p, init, n, zc, xs, vs, st, nt)? };
+            let pr = if shared {
+                &params[..1]
+            } else {
+                &params[j0..j0 + cn]
+            };
+            unsafe { avx2::ab_short_rows(pr, init, n, zc, xs, vs, st, nt)? };
         } else {
             // SAFETY: `flat_kernel()` checked the CPU features of `kind`; T
             // is f32 or f64 (`fits`).
@@ -2065,6 +2073,16 @@ fn ab_flat_batch<T: IoFloat>(
 /// `f32`, 19 MB slower in `f64`).
 #[cfg(target_arch = "x86_64")]
 const SHORT_ROWS_CACHED_BYTES: usize = 12 << 20;
+
+/// Longest rows (samples) that run in the AVX2 short-row lanes whatever the
+/// size of the batch (`f32`: up to twice as long): there the flat kernel
+/// spends most blocks on track boundaries. Measured on an AMD EPYC (Zen 3),
+/// 100,000 rows in memory, ns per sample, flat kernel -> short-row lanes:
+/// `f64` 8 samples 4.8 -> 2.3, 16: 3.5 -> 2.3, 24: 2.9 -> 2.1, 32: 2.4 ->
+/// 1.9-2.4, 48 (streamed): 1.9-2.0 -> 2.4-2.7; `f32` 16: 3.1 -> 2.4,
+/// 48: 2.0 -> 1.6, 64: 1.7 -> 1.4, 80: 1.34-1.39 -> 1.63-1.73.
+#[cfg(target_arch = "x86_64")]
+const SHORT_ROWS_MEM_MAX: usize = 32;
 
 /// `ABKIT_SHORT_ROWS_FLAT` set to anything but `0`: short rows always run
 /// in the flat kernel (for tests and comparisons). Read once.

@@ -553,7 +553,7 @@ fn scalar_steps<T: IoFloat>(
 #[allow(clippy::too_many_arguments)]
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn ab_short_rows<T: IoFloat>(
-    params: &dyn Fn(usize) -> (f64, f64, f64),
+    params: &[(f64, f64, f64)],
     init: Init,
     n: usize,
     z: &[T],
@@ -572,6 +572,21 @@ pub(super) unsafe fn ab_short_rows<T: IoFloat>(
         ));
     }
     const L: usize = AB_LANES;
+    // One (alpha, beta, T) for all rows, or one per row.
+    let shared = params.len() == 1;
+    if !shared && params.len() < cn {
+        return Err(crate::Error::Shape(
+            "short rows: fewer gains than rows".into(),
+        ));
+    }
+    let Some(&(a0, b0, t0)) = params.first() else {
+        return if cn == 0 {
+            Ok(())
+        } else {
+            Err(crate::Error::Shape("short rows: no gains".into()))
+        };
+    };
+    let c_shared = AbConst::new(a0, b0, t0);
     // Streamed outputs: two stages of eight rows per component; while the
     // lanes fill one, the other drains to the outputs a few lines per block
     // (spread over the computation rather than one burst per group).
@@ -611,12 +626,19 @@ pub(super) unsafe fn ab_short_rows<T: IoFloat>(
         } else {
             (&mut *ox, &mut *ov)
         };
-        let mut c = [AbConst::new(0.5, 0.1, 1.0); L];
+        let par = |l: usize| params[if shared { 0 } else { j0 + l }];
+        let c: [AbConst; L] = if shared {
+            [c_shared; L]
+        } else {
+            std::array::from_fn(|l| {
+                let (a, b, t) = par(l.min(rows - 1));
+                AbConst::new(a, b, t)
+            })
+        };
         let mut k0 = [0usize; L];
         for (l, st) in sts.iter_mut().enumerate() {
             let zr = &zb[l * n..(l + 1) * n];
-            let (a, b, t) = params(j0 + l);
-            c[l] = AbConst::new(a, b, t);
+            let (a, b, t) = par(l);
             let mut o = TrackOut {
                 states: [&mut dx[l * n..(l + 1) * n], &mut dv[l * n..(l + 1) * n]],
                 resid: None,

@@ -502,12 +502,14 @@ fn flat_avx2_case<T: IoFloat>(
     given: bool,
     nt: bool,
 ) {
-    flat_or_rows_case::<T>(lens, off, shared, init, given, nt, false)
+    flat_or_rows_case::<T>(lens, off, shared, init, given, nt, false, true)
 }
 
 /// [`flat_avx2_case`] with the short-row lanes (`avx2::ab_short_rows`)
-/// instead of the flat kernel if `rows` (all `lens` equal).
+/// instead of the flat kernel if `rows` (all `lens` equal); `z` without
+/// NaN unless `nan`.
 #[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
 fn flat_or_rows_case<T: IoFloat>(
     lens: &[usize],
     off: usize,
@@ -516,6 +518,7 @@ fn flat_or_rows_case<T: IoFloat>(
     given: bool,
     nt: bool,
     rows: bool,
+    nan: bool,
 ) {
     let n_tracks = lens.len();
     let mut offs = vec![0usize];
@@ -527,7 +530,7 @@ fn flat_or_rows_case<T: IoFloat>(
         .map(|i| {
             let h = (i.wrapping_mul(2654435761) >> 7) % 1000;
             // random NaNs, NaN runs (NaN-led and all-NaN short tracks)
-            if h < 80 || (i % 211 > 190) {
+            if nan && (h < 80 || (i % 211 > 190)) {
                 f64::NAN
             } else {
                 h as f64 * 0.013 + (i % 37) as f64 * 0.7
@@ -604,9 +607,14 @@ fn flat_or_rows_case<T: IoFloat>(
     if rows {
         let n = lens.first().copied().unwrap_or(0);
         assert!(lens.iter().all(|&l| l == n));
+        let pv: Vec<(f64, f64, f64)> = if shared {
+            vec![par(0)]
+        } else {
+            (0..n_tracks).map(par).collect()
+        };
         unsafe {
             super::avx2::ab_short_rows(
-                &par,
+                &pv,
                 step_init,
                 n,
                 &z,
@@ -703,7 +711,8 @@ fn short_row_lanes_are_bit_identical_to_tracks_alone() {
     // Row counts with and without left-over rows (fewer than 8), row
     // lengths with no lane steps, one quarter, odd quarters and scalar
     // tails; outputs at element offsets (partial lines joined across row
-    // groups when streamed).
+    // groups when streamed); z with NaN (most groups start row by row) and
+    // without (every full group's two-point start in vectors).
     for (ntr, n) in [
         (0, 10),
         (5, 40),
@@ -720,14 +729,34 @@ fn short_row_lanes_are_bit_identical_to_tracks_alone() {
         for off in [0, 1, 3, 7, 13] {
             for shared in [true, false] {
                 for nt in [false, true] {
-                    flat_or_rows_case::<f64>(&lens, off, shared, Init::TwoPoint, false, nt, true);
-                    flat_or_rows_case::<f32>(&lens, off, shared, Init::TwoPoint, false, nt, true);
+                    for nan in [true, false] {
+                        flat_or_rows_case::<f64>(
+                            &lens,
+                            off,
+                            shared,
+                            Init::TwoPoint,
+                            false,
+                            nt,
+                            true,
+                            nan,
+                        );
+                        flat_or_rows_case::<f32>(
+                            &lens,
+                            off,
+                            shared,
+                            Init::TwoPoint,
+                            false,
+                            nt,
+                            true,
+                            nan,
+                        );
+                    }
                 }
             }
         }
         for (init, given) in [(Init::First, false), (Init::TwoPoint, true)] {
-            flat_or_rows_case::<f64>(&lens, 5, false, init, given, true, true);
-            flat_or_rows_case::<f32>(&lens, 9, true, init, given, false, true);
+            flat_or_rows_case::<f64>(&lens, 5, false, init, given, true, true, true);
+            flat_or_rows_case::<f32>(&lens, 9, true, init, given, false, true, false);
         }
     }
 }

@@ -1,0 +1,89 @@
+//! Micro-benchmark of ragged alpha-beta batches without timestamps (not a
+//! test; docs/benchmarks.md): ns per sample of `filter_tracks` over tracks
+//! of log-uniform lengths `lo..hi` up to `total` samples (or all of length
+//! `lo` if `lo == hi`), best of `reps` runs, fixed gains.
+//!
+//! ```sh
+//! cargo run --release -p abkit-core --example ragbench -- 10 10000 10000000 5
+//! cargo run --release -p abkit-core --example ragbench -- 100 100 10000000 5
+//! ```
+use abkit_core::filter::{Init, TrackState};
+use abkit_core::irregular::AbFixed;
+use abkit_core::ragged::{filter_tracks, NoPost, Options, Samples, TrackFilter};
+use std::time::Instant;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let a = std::env::args()
+        .skip(1)
+        .map(|s| s.parse::<usize>())
+        .collect::<Result<Vec<_>, _>>()?;
+    let &[lo, hi, total, reps, ..] = &a[..] else {
+        return Err("usage: ragbench LO HI TOTAL REPS".into());
+    };
+    let mut s = 12345u64;
+    let mut r = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut off: Vec<i64> = vec![0];
+    let mut n = 0usize;
+    while n < total {
+        let len = if lo == hi {
+            lo
+        } else {
+            let (l0, l1) = ((lo as f64).log10(), (hi as f64).log10());
+            10f64.powf(l0 + (l1 - l0) * r()).round() as usize
+        };
+        let len = len.clamp(1, total - n);
+        n += len;
+        off.push(n as i64);
+    }
+    let z: Vec<f64> = (0..n).map(|i| i as f64 * 0.01 + r()).collect();
+    let laws = [AbFixed {
+        alpha: 0.5,
+        beta: 0.2,
+    }];
+    let f = TrackFilter {
+        laws: &laws[..],
+        h: [[1.0, 0.0]],
+        h_pinv: [[1.0], [0.0]],
+    };
+    let o = Options {
+        init: Init::TwoPoint,
+        t_nominal: 0.1,
+        max_gap: None,
+        drop_duplicates: false,
+    };
+    let n_tracks = off.len() - 1;
+    let mut st = vec![TrackState::default(); n_tracks];
+    let mut counts = vec![[0i64; 2]; n_tracks];
+    let mut states = vec![0.0f64; 2 * n];
+    let zs = Samples::flat(&z, 1)?;
+    let mut best = f64::INFINITY;
+    for _ in 0..reps {
+        st.iter_mut().for_each(|s| *s = TrackState::default());
+        let t0 = Instant::now();
+        filter_tracks(
+            &f,
+            &o,
+            &off,
+            &zs,
+            None,
+            &mut st,
+            &mut states,
+            None,
+            &mut counts,
+            false,
+            &NoPost,
+        )?;
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    println!(
+        "{n_tracks} tracks, {n} samples: {:.3} ns/sample = {:.0} Ms/s",
+        best * 1e9 / n as f64,
+        n as f64 / best / 1e6
+    );
+    Ok(())
+}
