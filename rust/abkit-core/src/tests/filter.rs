@@ -730,26 +730,9 @@ fn short_row_lanes_are_bit_identical_to_tracks_alone() {
             for shared in [true, false] {
                 for nt in [false, true] {
                     for nan in [true, false] {
-                        flat_or_rows_case::<f64>(
-                            &lens,
-                            off,
-                            shared,
-                            Init::TwoPoint,
-                            false,
-                            nt,
-                            true,
-                            nan,
-                        );
-                        flat_or_rows_case::<f32>(
-                            &lens,
-                            off,
-                            shared,
-                            Init::TwoPoint,
-                            false,
-                            nt,
-                            true,
-                            nan,
-                        );
+                        let two = Init::TwoPoint;
+                        flat_or_rows_case::<f64>(&lens, off, shared, two, false, nt, true, nan);
+                        flat_or_rows_case::<f32>(&lens, off, shared, two, false, nt, true, nan);
                     }
                 }
             }
