@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import filterref as fr
-from abkit import AlphaBetaFilter, AlphaBetaGammaFilter, FixedGainFilter, Tracker
+from abkit import AlphaBetaFilter, AlphaBetaGammaFilter, FilterState, FixedGainFilter, Tracker
 
 
 def same(a, b):
@@ -212,6 +212,43 @@ def test_tracker_single_track_lists_and_filter_method():
     trk2 = Tracker(f)
     r = trk2.update([0, 1, 2])
     assert r.states.dtype == np.float64 and same(r.states, f.run(np.array([0.0, 1.0, 2.0])).states)
+
+
+def test_tracker_one_number_per_update():
+    # Real-time use: one measurement (a Python float, NumPy scalar or 0-d
+    # array; NaN = missed) per call gives the bits of one whole-array run.
+    f = AlphaBetaFilter(0.45, 0.12, 0.5)
+    z = np.cumsum(np.random.default_rng(3).normal(size=40))
+    z[[0, 7, 8, 20]] = np.nan
+    trk = Tracker(f)
+    got = []
+    for k, v in enumerate(z):
+        x = (float(v), np.float64(v), np.array(v))[k % 3]
+        got.append(trk.update(x).states)
+    assert trk.samples == z.size
+    assert same(np.concatenate(got, axis=-1), f.run(z).states)
+    # float32 scalars stay float32; vector measurements and multi-track
+    # trackers still need arrays of the run layout
+    r = Tracker(f).update(np.float32(1.5))
+    assert r.states.dtype == np.float32 and r.states.shape == (2, 1)
+    with pytest.raises(ValueError, match="z_chunk"):
+        Tracker(f, n_tracks=3).update(1.0)
+    with pytest.raises(TypeError, match="z_chunk"):
+        Tracker(f).update(np.array([1 + 2j]))
+
+
+def test_state_copied_and_checked():
+    f = AlphaBetaFilter(0.5, 0.2, 1.0)
+    z = np.cumsum(np.ones((3, 10)), axis=1)
+    a = f.run(z[:, :5])
+    packed = a.state._packed.copy()
+    b = f.run(z[:, 5:], state=a.state)
+    assert np.array_equal(a.state._packed, packed, equal_nan=True)  # not changed
+    assert same(np.concatenate([a.states, b.states], axis=2), f.run(z).states)
+    bad = FilterState(np.zeros((3, 4)), 2, False)
+    with pytest.raises(ValueError, match="packed array of shape"):
+        f.run(z, state=bad)
+    assert np.array_equal(a.n_dropped, np.zeros(3, np.int64)) and a.n_restarts.shape == (3,)
 
 
 def test_tracker_first_init():

@@ -154,7 +154,7 @@ class FilterResult:
         The timestamps (float64) of a run with ``t``, else None.
     """
 
-    __slots__ = ("states", "residuals", "state", "offsets", "n_dropped", "n_restarts", "t")
+    __slots__ = ("states", "residuals", "state", "offsets", "_n_dropped", "_n_restarts", "t")
 
     def __init__(
         self,
@@ -171,10 +171,25 @@ class FilterResult:
         self.residuals = residuals
         self.state = state
         self.offsets = offsets
-        nt = state._packed.shape[0] // (state.axes or 1)
-        self.n_dropped = np.zeros(nt, dtype=np.int64) if n_dropped is None else n_dropped
-        self.n_restarts = np.zeros(nt, dtype=np.int64) if n_restarts is None else n_restarts
+        # Zeros made on first access (most runs drop and restart nothing).
+        self._n_dropped = n_dropped
+        self._n_restarts = n_restarts
         self.t = t
+
+    def _zeros(self) -> np.ndarray:
+        return np.zeros(self.state._packed.shape[0] // (self.state.axes or 1), dtype=np.int64)
+
+    @property
+    def n_dropped(self) -> np.ndarray:
+        if self._n_dropped is None:
+            self._n_dropped = self._zeros()
+        return self._n_dropped
+
+    @property
+    def n_restarts(self) -> np.ndarray:
+        if self._n_restarts is None:
+            self._n_restarts = self._zeros()
+        return self._n_restarts
 
     @property
     def position(self) -> np.ndarray:
@@ -237,7 +252,8 @@ def prepare_z(z: Any, m: int, name: str = "z") -> Tuple[np.ndarray, Tuple[int, .
         if z.ndim not in (2, 3) or z.shape[-1] != m:
             raise ValueError(f"{name} must have shape (n_samples, {m}) or (n_tracks, n_samples, {m}) for this filter (H has {m} rows), got {z.shape}")
         z3, single = (z[None] if z.ndim == 2 else z), z.ndim == 2
-    if not z3.flags.aligned or any(s % z3.itemsize for s in z3.strides):
+    st = z3.strides
+    if not z3.flags.aligned or (st[0] | st[1] | st[2]) % z3.itemsize:
         z3 = np.ascontiguousarray(z3)  # unaligned memory: the one case that copies
     return z3, z3.shape[:2], single
 
@@ -395,7 +411,6 @@ class FixedGainFilter:
         return prepare_z(z, self.m)
 
     def _initial_state(self, init: Any, state: Optional[FilterState], n_tracks: int) -> Tuple[np.ndarray, str]:
-        packed = np.tile(_FRESH, (n_tracks, 1))  # no timestamps known
         if state is not None:
             if not isinstance(state, FilterState):
                 raise TypeError(f"state must be a FilterState (result.state), got {type(state).__name__}")
@@ -403,7 +418,12 @@ class FixedGainFilter:
                 raise ValueError(f"state is from a run with axes={state.axes}; pass the same axes=")
             if state.n != self.n or state.n_tracks != n_tracks:
                 raise ValueError(f"state is for {state.n_tracks} tracks of {state.n} states; z has {n_tracks} tracks and the filter {self.n} states")
-            packed[:] = state._packed
+            # a copy (the caller's state is never changed), float64 C order
+            packed = np.array(state._packed, dtype=np.float64, order="C")
+            if packed.shape != (n_tracks, _W):
+                raise ValueError(f"state has a packed array of shape {packed.shape}; expected ({n_tracks}, {_W})")
+        else:
+            packed = _FRESH[None].repeat(n_tracks, 0)  # fresh tracks, no timestamps known
         if isinstance(init, str):
             if init not in ("two-point", "first"):
                 raise ValueError(f"init must be 'two-point', 'first' or an array of initial states, got {init!r}")
@@ -1236,17 +1256,21 @@ class Tracker:
         self.samples = 0
 
     def update(self, z_chunk: Any, **kw: Any) -> FilterResult:
-        """Filter the next chunk (same layout as ``run``) and keep the state."""
+        """Filter the next chunk (same layout as ``run``) and keep the state.
+
+        A single number (or 0-d array) is one sample of a one-track tracker
+        with scalar measurements."""
         z = np.asarray(z_chunk) if not isinstance(z_chunk, np.ndarray) else z_chunk
         if z.dtype.kind in "iub":
             z = z.astype(np.float64)
-        prepare_z(z, self.filter.m, "z_chunk")
+        if z.ndim == 0 and self.n_tracks == 1 and self.filter.m == 1:
+            z = z.reshape(1)
         try:
             res = self.filter.run(z, init=self.init, state=self.state, **kw)
-        except ValueError as exc:  # name the argument as the caller spelled it
+        except (ValueError, TypeError) as exc:  # name the argument as the caller spelled it
             msg = str(exc)
             if msg.startswith("z "):
-                raise ValueError("z_chunk" + msg[1:]) from None
+                raise type(exc)("z_chunk" + msg[1:]) from None
             raise
         self.state = res.state
         self.samples += res.states.shape[-1] if res.state.axes is None else res.states.shape[-2]
