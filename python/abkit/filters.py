@@ -1242,6 +1242,8 @@ class Tracker:
     >>> b = trk.update([3.0, 4.0])
     >>> b.position.shape
     (2,)
+    >>> trk.update(5.0).position.shape  # one number: one sample
+    (1,)
     """
 
     def __init__(self, filt: FixedGainFilter, n_tracks: int = 1, init: Any = "two-point"):
