@@ -527,6 +527,35 @@ fn scalar_steps<T: IoFloat>(
     }
 }
 
+/// Scalar steps `from..n` of the eight rows of `n` samples back to back in
+/// `z`, `xs`, `vs` (row `l` in lane `l`), the rows interleaved (step `s`
+/// of every row, then step `s + 1`): [`scalar_steps`] for the short-row
+/// lanes' last steps, without per-row slices.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+#[target_feature(enable = "fma")]
+fn row_tails<T: IoFloat>(
+    c: &[AbConst; AB_LANES],
+    x: &mut [f64; AB_LANES],
+    v: &mut [f64; AB_LANES],
+    z: &[T],
+    xs: &mut [T],
+    vs: &mut [T],
+    n: usize,
+    from: usize,
+) {
+    for kk in from..n {
+        for l in 0..AB_LANES {
+            let i = l * n + kk;
+            let (x1, v1, _) = ab_step::<true>(&c[l], x[l], v[l], z[i].to_f64());
+            x[l] = x1;
+            v[l] = v1;
+            xs[i] = T::from_f64(x1);
+            vs[i] = T::from_f64(v1);
+        }
+    }
+}
+
 /// Short contiguous rows (`z`, `xs`, `vs`: `states.len()` rows of `n`
 /// samples back to back; row `j` has the gains `params(j)`), eight rows at
 /// a time: each row's start-up (`ab_start`) and steps to a common first
@@ -764,14 +793,10 @@ pub(super) unsafe fn ab_short_rows<T: IoFloat>(
                 _mm256_storeu_pd(v.as_mut_ptr(), vv[0]);
                 _mm256_storeu_pd(v.as_mut_ptr().add(V), vv[1]);
             }
-            let zr: [&[T]; L] = std::array::from_fn(|l| &zb[l * n..(l + 1) * n]);
-            {
-                let mut xr = dx.chunks_exact_mut(n);
-                let mut vr = dv.chunks_exact_mut(n);
-                let mut xr: [&mut [T]; L] = std::array::from_fn(|_| xr.next().unwrap_or(&mut []));
-                let mut vr: [&mut [T]; L] = std::array::from_fn(|_| vr.next().unwrap_or(&mut []));
-                let from = kmax + nq * V;
-                scalar_steps(&c, &mut x, &mut v, &zr, &mut xr, &mut vr, [from; L], [n; L]);
+            // The last steps (fewer than four), if any.
+            let from = kmax + nq * V;
+            if from < n {
+                row_tails(&c, &mut x, &mut v, zb, dx, dv, n, from);
             }
             for (l, st) in sts.iter_mut().enumerate() {
                 st.x[0] = x[l];
