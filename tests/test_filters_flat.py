@@ -140,10 +140,10 @@ def test_short_rows_large_output_streamed(dtype, n):
 
 @pytest.mark.parametrize(
     "dtype,ntr,n",
-    [(np.float64, 30_000, 20), (np.float64, 230_000, 20), (np.float32, 30_000, 60), (np.float32, 70_000, 9)],
+    [(np.float64, 30_000, 20), (np.float64, 30_000, 70), (np.float64, 230_000, 20), (np.float32, 30_000, 60), (np.float32, 70_000, 9)],
 )
 def test_short_rows_in_memory_bit_identical(dtype, ntr, n):
-    # Batches bigger than the caches with rows of <= 32 samples (float32:
+    # Batches bigger than the caches with rows of <= 80 samples (float32:
     # <= 64) run in the AVX2 short-row lanes on AVX2-only CPUs (230,000 x
     # 20 float64: outputs >= 64 MiB, streamed through the stages); every
     # track equals the scalar row kernel's (residuals on: no flat or

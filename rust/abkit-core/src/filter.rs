@@ -1968,15 +1968,14 @@ fn ab_flat_batch<T: IoFloat>(
     let zs = z.data.get(z.base..z.base.checked_add(total)?)?;
     let nt = streamed::<T>(2 * total * std::mem::size_of::<T>(), true);
     // The AVX2 short-row lanes where they were measured faster than the flat
-    // kernel (`avx2::ab_short_rows`): z and outputs within the caches, rows
-    // of at most SHORT_ROWS_MEM_MAX samples (f32: twice that) in memory, or
-    // f32 with streamed outputs.
-    let f32_ = !simd::is_f64::<T>();
+    // kernel (`avx2::ab_short_rows`): z and outputs within the caches, short
+    // rows in memory (SHORT_ROWS_MEM_MAX), or f32 with streamed outputs.
+    let f64_ = simd::is_f64::<T>();
     let rows8 = kind == FlatKernel::Avx2
         && !short_rows_flat()
         && (3 * total * std::mem::size_of::<T>() <= SHORT_ROWS_CACHED_BYTES
-            || n <= SHORT_ROWS_MEM_MAX
-            || (f32_ && (nt || n <= 2 * SHORT_ROWS_MEM_MAX)));
+            || n <= SHORT_ROWS_MEM_MAX[usize::from(f64_)]
+            || (nt && !f64_));
     let (xs, vs) = out.split_at_mut(total);
     // Chunks of whole tracks (the unit of parallel work); results do not
     // depend on the chunking.
@@ -2074,15 +2073,15 @@ fn ab_flat_batch<T: IoFloat>(
 #[cfg(target_arch = "x86_64")]
 const SHORT_ROWS_CACHED_BYTES: usize = 12 << 20;
 
-/// Longest rows (samples) that run in the AVX2 short-row lanes whatever the
-/// size of the batch (`f32`: up to twice as long): there the flat kernel
-/// spends most blocks on track boundaries. Measured on an AMD EPYC (Zen 3),
-/// 100,000 rows in memory, ns per sample, flat kernel -> short-row lanes:
-/// `f64` 8 samples 4.8 -> 2.3, 16: 3.5 -> 2.3, 24: 2.9 -> 2.1, 32: 2.4 ->
-/// 1.9-2.4, 48 (streamed): 1.9-2.0 -> 2.4-2.7; `f32` 16: 3.1 -> 2.4,
-/// 48: 2.0 -> 1.6, 64: 1.7 -> 1.4, 80: 1.34-1.39 -> 1.63-1.73.
+/// Longest rows (samples; `[f32, f64]`) that run in the AVX2 short-row
+/// lanes whatever the size of the batch: there the flat kernel spends most
+/// blocks on track boundaries. Measured on an AMD EPYC (Zen 3), 100,000
+/// rows in memory, ns per sample, flat kernel -> short-row lanes: `f64` 8
+/// samples 4.8 -> 2.3, 16: 3.5 -> 1.7, 32: 2.4 -> 1.9, 48: 1.95 -> 1.79,
+/// 64: 2.06 -> 1.68, 80: 1.75 -> 1.57, 100: 1.41 -> 1.59; `f32` 16: 3.1 ->
+/// 1.7, 48: 2.0 -> 1.3, 64: 1.71 -> 1.24, 80: 1.37 -> 1.52.
 #[cfg(target_arch = "x86_64")]
-const SHORT_ROWS_MEM_MAX: usize = 32;
+const SHORT_ROWS_MEM_MAX: [usize; 2] = [64, 80];
 
 /// `ABKIT_SHORT_ROWS_FLAT` set to anything but `0`: short rows always run
 /// in the flat kernel (for tests and comparisons). Read once.
