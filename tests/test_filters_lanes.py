@@ -239,6 +239,24 @@ def test_general_lanes_large_output_streamed():
     assert np.array_equal(lanes.states[:, idx], scalar.states, equal_nan=True)
 
 
+@pytest.mark.parametrize("n", [100, 61])
+def test_general_lanes_short_rows_streamed(n):
+    # 3 x rows x n float64 outputs >= 64 MiB with short rows: every lane
+    # steps to a line-aligned sample first (heads of 0-7 samples, different
+    # per lane), then whole streamed lines, then tails; heads and tails run
+    # as masked vector steps. The same bits as the per-track scalar loop
+    # (residuals requested), on tracks from every position in a group of 4.
+    rng = np.random.default_rng(40 + n)
+    rows = -(-(64 << 20) // (3 * 8 * n)) + 5
+    z = fr.with_nans(rng, fr.kinematic_z(rng, rows, n, 0.5), "random")
+    f = AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5)
+    lanes = f.run(z)
+    idx = np.r_[0:13, rows // 2 : rows // 2 + 9, rows - 11 : rows]
+    scalar = f.run(z[idx], return_residuals=True)
+    assert np.array_equal(lanes.states[:, idx], scalar.states, equal_nan=True)
+    assert np.array_equal(lanes.state.x[idx], scalar.state.x, equal_nan=True)
+
+
 # ---------------------------------------------------------------------------
 # The general kernel's AVX-512 lanes (8 tracks per vector register, groups of
 # 8 where the CPU has AVX-512, else groups of 4 / scalar): the same bits as

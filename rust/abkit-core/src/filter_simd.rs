@@ -401,18 +401,128 @@ fn transpose4(r: &mut [__m256d; 4]) {
 /// aligning heads (`f32` always, `f64` unless its outputs are streamed).
 const SHORT_F32: usize = 512;
 
+/// The general gains of four lanes in vectors (slot `l`: lane `l`'s).
+struct GenMats<const N: usize, const M: usize> {
+    a: [[__m256d; N]; N],
+    phi: [[__m256d; N]; N],
+    k: [[__m256d; M]; N],
+}
+
+/// One vector step of four lanes on their measurement vectors `zs`
+/// (component `j` of each lane in `zs[j]`): `A x + K z` where every
+/// component of a lane's `z` is valid, else the coast `Phi x` (computed only
+/// if some lane needs it). Per slot exactly the scalar `gen_step` (the same
+/// FMAs in the same order).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn gen_vstep<const N: usize, const M: usize>(
+    g: &GenMats<N, M>,
+    x: &[__m256d; N],
+    zs: &[__m256d; M],
+) -> [__m256d; N] {
+    let mut valid = _mm256_cmp_pd::<_CMP_ORD_Q>(zs[0], zs[0]);
+    for zc in zs.iter().skip(1) {
+        valid = _mm256_and_pd(valid, _mm256_cmp_pd::<_CMP_ORD_Q>(*zc, *zc));
+    }
+    let all_valid = _mm256_movemask_pd(valid) == 0xf;
+    std::array::from_fn(|i| {
+        let mut u = _mm256_mul_pd(g.k[i][0], zs[0]);
+        for j in 1..M {
+            u = _mm256_fmadd_pd(g.k[i][j], zs[j], u);
+        }
+        for j in 0..N {
+            u = _mm256_fmadd_pd(g.a[i][j], x[j], u);
+        }
+        if all_valid {
+            return u;
+        }
+        let mut p = _mm256_setzero_pd();
+        for j in 0..N {
+            p = _mm256_fmadd_pd(g.phi[i][j], x[j], p);
+        }
+        _mm256_blendv_pd(p, u, valid)
+    })
+}
+
+/// Vector steps of the four general lanes, lane `l` over samples
+/// `from[l]..to[l]` (its step `s` at sample `from[l] + s`; a lane whose
+/// range is done keeps its state): per step the running lanes' `z` gathered
+/// into vectors (a done lane's slot gets 0), one [`gen_vstep`], the new
+/// state blended in where a lane runs, and each running lane's outputs
+/// stored. The heads and tails of the rows around the vector blocks: the
+/// same bits as the scalar `gen_step` per lane, in a third of the time of
+/// stepping the four lanes one after the other (3-state rows of 100
+/// samples; docs/benchmarks.md, session 10).
+///
+/// # Safety
+/// AVX2 and FMA; for every lane
+/// `to[l] * M <= rows[l].len()` and `out[l][i]` has `to[l]` writable
+/// elements.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn gen_masked_steps<T: IoFloat, const N: usize, const M: usize>(
+    g: &GenMats<N, M>,
+    x: &mut [__m256d; N],
+    rows: &[&[T]; GEN_LANES],
+    out: &[[*mut T; N]; GEN_LANES],
+    from: [usize; GEN_LANES],
+    to: [usize; GEN_LANES],
+) {
+    const L: usize = GEN_LANES;
+    let most = (0..L)
+        .map(|l| to[l].saturating_sub(from[l]))
+        .max()
+        .unwrap_or(0);
+    // SAFETY: every access below is at a running sample k < to[l] of lane
+    // l (the caller's bounds); the rest is register and stack work.
+    unsafe {
+        for s in 0..most {
+            let mut zl = [[0.0f64; L]; M];
+            let mut run = [0i64; L];
+            for l in 0..L {
+                let k = from[l] + s;
+                if k < to[l] {
+                    for (j, zj) in zl.iter_mut().enumerate() {
+                        zj[l] = rows[l].get_unchecked(k * M + j).to_f64();
+                    }
+                    run[l] = -1;
+                }
+            }
+            let zs: [__m256d; M] = std::array::from_fn(|j| _mm256_loadu_pd(zl[j].as_ptr()));
+            let xn = gen_vstep(g, x, &zs);
+            let runv = _mm256_castsi256_pd(_mm256_loadu_si256(run.as_ptr() as *const __m256i));
+            let mut t = [[0.0f64; L]; N];
+            for i in 0..N {
+                x[i] = _mm256_blendv_pd(x[i], xn[i], runv);
+                _mm256_storeu_pd(t[i].as_mut_ptr(), xn[i]);
+            }
+            for l in 0..L {
+                let k = from[l] + s;
+                if k < to[l] {
+                    for i in 0..N {
+                        *out[l][i].add(k) = T::from_f64(t[i][l]);
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The four general lanes over samples `k0..n`: `rows[l]` holds lane `l`'s
 /// measurements (`n * M` values, sample-major), `group[l].2.states[i]` its
-/// outputs, `x[l]` its state (updated). Each lane first steps (scalar) to a
-/// sample where its first output row is aligned to a cache line (lanes are
-/// independent tracks, so they may be at different samples); then blocks of
-/// one output line (8 `f64` or 16 `f32` samples): per 4 samples each lane
-/// loads `4 M` consecutive values, 4 x 4 transposes give per-sample vectors
-/// across the lanes, the steps run in vectors (the update `A x + K z`, and
-/// where some lane misses a component also the coast `Phi x`, blended per
-/// lane on "every component valid"), and transposes give the rows back,
-/// stored as whole lines (non-temporal if `nt`, for aligned rows). Each slot does exactly the scalar `gen_step` arithmetic (same
-/// FMAs, same order), so results are bit-identical to the scalar lanes.
+/// outputs, `x[l]` its state (updated). Each lane first steps to a sample
+/// where its first output row is aligned to a cache line (lanes are
+/// independent tracks, so they may be at different samples; these heads,
+/// and the tails after the last whole block, run as masked vector steps,
+/// [`gen_masked_steps`]); then blocks of one output line (8 `f64` or 16
+/// `f32` samples): per 4 samples each lane loads `4 M` consecutive values,
+/// 4 x 4 transposes give per-sample vectors across the lanes, the steps run
+/// in vectors ([`gen_vstep`]: the update `A x + K z`, and where some lane
+/// misses a component also the coast `Phi x`, blended per lane on "every
+/// component valid"), and transposes give the rows back, stored as whole
+/// lines (non-temporal if `nt`, for aligned rows). Each slot does exactly
+/// the scalar `gen_step` arithmetic (same FMAs, same order), so results
+/// are bit-identical to the scalar lanes.
 ///
 /// # Safety
 /// The CPU supports AVX2 and FMA ([`avx2_available`]).
@@ -441,42 +551,47 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             .iter()
             .all(|j| j.2.states.iter().all(|s| s.len() >= n))
         && n >= k0 + 4 * bs;
-    let mut k = [k0; L];
+    if !ok {
+        gen_scalar_steps(cs, xs, &rows, group, [k0; L], [n; L]);
+        return;
+    }
     // Short rows skip the aligning heads where they buy nothing: in f32
-    // (up to 15 scalar samples of a short row cost more than the unaligned
-    // stores) and, unless streamed, in f64 (the heads only make streamed
-    // stores possible; 3-state rows of 100 samples: 2,000 rows 2.75 -> 2.46,
-    // 20,000 rows 3.2-3.4 -> 2.9-3.2 ns per sample on Zen 3).
+    // (up to 15 steps of a short row cost more than the unaligned stores)
+    // and, unless streamed, in f64 (the heads only make streamed stores
+    // possible; 3-state rows of 100 samples: 2,000 rows 2.75 -> 2.46,
+    // 20,000 rows 3.2-3.4 -> 2.9-3.2 ns per sample on Zen 3, with scalar
+    // heads).
     let short = n.saturating_sub(k0) < SHORT_F32;
     let align = !((is_f32::<T>() || !nt) && short);
-    if ok && align {
+    let out: [[*mut T; N]; L] =
+        std::array::from_fn(|l| std::array::from_fn(|i| group[l].2.states[i].as_mut_ptr()));
+    let mut k = [k0; L];
+    if align {
         for l in 0..L {
-            let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
+            let addr = out[l][0] as usize + k0 * size;
             k[l] = k0 + ((64 - addr % 64) % 64) / size;
         }
-    } else if !ok {
-        k = [n; L];
     }
-    gen_scalar_steps(cs, xs, &rows, group, [k0; L], k);
+    let v4 =
+        |f: &dyn Fn(&GenConst<N, M>) -> f64| _mm256_set_pd(f(cs[3]), f(cs[2]), f(cs[1]), f(cs[0]));
+    let g = GenMats::<N, M> {
+        a: std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.a[i][j]))),
+        phi: std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.phi[i][j]))),
+        k: std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.k[i][j]))),
+    };
+    let mut x: [__m256d; N] =
+        std::array::from_fn(|i| _mm256_set_pd(xs[3][i], xs[2][i], xs[1][i], xs[0][i]));
+    // SAFETY: k[l] <= k0 + 7 < n (n >= k0 + 4 bs), rows hold n M values and
+    // every output row n values (`ok`).
+    unsafe { gen_masked_steps(&g, &mut x, &rows, &out, [k0; L], k) };
     let blocks = k
         .iter()
         .map(|&kl| n.saturating_sub(kl) / bs)
         .min()
         .unwrap_or(0);
     let stream: [[bool; N]; L] = std::array::from_fn(|l| {
-        std::array::from_fn(|i| {
-            nt && (group[l].2.states[i].as_ptr() as usize + k[l] * size).is_multiple_of(64)
-        })
+        std::array::from_fn(|i| nt && (out[l][i] as usize + k[l] * size).is_multiple_of(64))
     });
-    let v4 =
-        |f: &dyn Fn(&GenConst<N, M>) -> f64| _mm256_set_pd(f(cs[3]), f(cs[2]), f(cs[1]), f(cs[0]));
-    let a: [[__m256d; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.a[i][j])));
-    let phi: [[__m256d; N]; N] =
-        std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.phi[i][j])));
-    let kk: [[__m256d; M]; N] =
-        std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.k[i][j])));
-    let mut x: [__m256d; N] =
-        std::array::from_fn(|i| _mm256_set_pd(xs[3][i], xs[2][i], xs[1][i], xs[0][i]));
     let zero = _mm256_setzero_pd();
     // Block outputs (every entry read is written in the same block; made
     // once: zeroing it per block cost a 1.5 KiB memset per block).
@@ -487,8 +602,8 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                 let at = k[l] + b * bs;
                 prefetch(rows[l].as_ptr().wrapping_add(dz + at * M));
                 if !nt {
-                    for i in 0..N {
-                        prefetch(group[l].2.states[i].as_ptr().wrapping_add(dout + at));
+                    for o in &out[l] {
+                        prefetch(o.wrapping_add(dout + at));
                     }
                 }
             }
@@ -496,42 +611,20 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
         for h in 0..bs / L {
             // zs[s][c]: component c of each lane's sample k[l] + b bs + h L + s.
             let mut zs = [[zero; M]; L];
-            for g in 0..M {
+            for gc in 0..M {
                 let mut r: [__m256d; L] = std::array::from_fn(|l| {
-                    let at = (k[l] + b * bs + h * L) * M + g * L;
+                    let at = (k[l] + b * bs + h * L) * M + gc * L;
                     // SAFETY: at + L <= (k[l] + (b + 1) bs) M <= n M <= rows[l].len().
                     unsafe { load4(rows[l].as_ptr().add(at)) }
                 });
                 transpose4(&mut r);
                 for (i, ri) in r.iter().enumerate() {
-                    let idx = g * L + i;
+                    let idx = gc * L + i;
                     zs[idx / M][idx % M] = *ri;
                 }
             }
             for (s, zsv) in zs.iter().enumerate() {
-                let mut valid = _mm256_cmp_pd::<_CMP_ORD_Q>(zsv[0], zsv[0]);
-                for zc in zsv.iter().skip(1) {
-                    valid = _mm256_and_pd(valid, _mm256_cmp_pd::<_CMP_ORD_Q>(*zc, *zc));
-                }
-                let all_valid = _mm256_movemask_pd(valid) == 0xf;
-                let xn: [__m256d; N] = std::array::from_fn(|i| {
-                    let mut u = _mm256_mul_pd(kk[i][0], zsv[0]);
-                    for j in 1..M {
-                        u = _mm256_fmadd_pd(kk[i][j], zsv[j], u);
-                    }
-                    for j in 0..N {
-                        u = _mm256_fmadd_pd(a[i][j], x[j], u);
-                    }
-                    if all_valid {
-                        return u;
-                    }
-                    let mut p = zero;
-                    for j in 0..N {
-                        p = _mm256_fmadd_pd(phi[i][j], x[j], p);
-                    }
-                    _mm256_blendv_pd(p, u, valid)
-                });
-                x = xn;
+                x = gen_vstep(&g, &x, zsv);
                 for i in 0..N {
                     outv[i][h * L + s] = x[i];
                 }
@@ -542,12 +635,11 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                 let mut r: [__m256d; L] = std::array::from_fn(|s| ov[q * L + s]);
                 transpose4(&mut r);
                 for l in 0..L {
-                    let p = group[l].2.states[i].as_mut_ptr();
                     let at = k[l] + b * bs + q * L;
                     // SAFETY: at + L <= k[l] + (b + 1) bs <= n <= states[i].len();
                     // streamed rows are aligned to 64 bytes at k[l] (checked
                     // in `stream`), so to 4 values at `at`.
-                    unsafe { store4(p.add(at), r[l], stream[l][i]) };
+                    unsafe { store4(out[l][i].add(at), r[l], stream[l][i]) };
                 }
             }
         }
@@ -555,6 +647,9 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     if nt {
         _mm_sfence();
     }
+    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * bs).min(n));
+    // SAFETY: as for the heads (from[l] <= n).
+    unsafe { gen_masked_steps(&g, &mut x, &rows, &out, from, [n; L]) };
     for i in 0..N {
         let mut t = [0.0; L];
         // SAFETY: t is a plain array of 4 f64.
@@ -563,8 +658,6 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             xs[l][i] = t[l];
         }
     }
-    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * bs).min(n));
-    gen_scalar_steps(cs, xs, &rows, group, from, [n; L]);
 }
 
 /// Scalar steps of every general lane `l` over samples `from[l]..to[l]`,
