@@ -124,6 +124,44 @@ def test_lanes_bit_identical_to_tracks_alone(kind, dtype, pattern, lens, resid):
         assert np.array_equal(r.state.t_last[i], np.ravel(one.state.t_last)[0], equal_nan=True), i
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("sw", [SW, 3000.0], ids=["small-lambda", "large-lambda"])
+@pytest.mark.parametrize("opts", [{}, dict(max_gap=1.5)], ids=["plain", "restarts"])
+def test_grid_timestamps_bit_identical_to_tracks_alone(dtype, sw, opts):
+    # Timestamps on a grid (whole seconds, 2 % of the reports missed): the
+    # vector lanes reuse the design law's gains while every slot's dt
+    # repeats, and recompute them when one changes. Tracks on the grid mixed
+    # with irregular ones (so some blocks have equal dt in some slots only),
+    # missed measurements, restarts at the 2 s gaps (max_gap=1.5); both
+    # branches of the design law (lambda = (sw / SV) dt^2 / ... small and
+    # large). Bit-identical to each track run alone (the scalar lane code,
+    # which computes the gains at every step).
+    rng = np.random.default_rng(77)
+    lens = [3000, 17, 2500, 1, 0, 2048, 999, 1500, 33, 1200, 700, 64]
+    off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    n = int(off[-1])
+    t = np.empty(n)
+    for i in range(len(lens)):
+        a, b = off[i], off[i + 1]
+        if i % 3 == 2:
+            dt = rng.uniform(0.5, 1.5, b - a)
+        else:
+            dt = 1.0 + (rng.random(b - a) < 0.02)
+        t[a:b] = float(rng.integers(0, 1000)) + np.cumsum(dt)
+    z = 3.0 + 2.0 * t + rng.normal(0, 1.0, n)
+    z[rng.random(n) < 0.05] = np.nan
+    z = z.astype(dtype)
+    f = AlphaBetaFilter.from_noise(sw, SV, 1.0)
+    r = f.run(z, t=t, offsets=off, **opts)
+    for i in range(len(lens)):
+        a, b = off[i], off[i + 1]
+        one = f.run(z[a:b], t=t[a:b], **opts)
+        assert np.array_equal(r.states[:, a:b], one.states, equal_nan=True), i
+        assert np.array_equal(r.state.x[i], np.ravel(one.state.x), equal_nan=True), i
+    if opts:
+        assert r.n_restarts.sum() > 0
+
+
 @pytest.mark.parametrize("kind", ["design", "fixed"])
 @pytest.mark.parametrize("opts", [dict(max_gap=20.0), dict(on_duplicate="drop"), dict(max_gap=20.0, on_duplicate="drop", init="first")])
 def test_restarts_and_drops_bit_identical_to_tracks_alone(kind, opts):

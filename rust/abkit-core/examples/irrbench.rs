@@ -8,6 +8,7 @@
 //! cargo run --release -p abkit-core --example irrbench -- 4 4000 3000     # in L2
 //! cargo run --release -p abkit-core --example irrbench -- 1000 10000 3    # 10^7 samples
 //! cargo run --release -p abkit-core --example irrbench -- 4 4000 3000 1   # steps 0.1 / 0.2
+//! cargo run --release -p abkit-core --example irrbench -- 4 4000 3000 2   # whole seconds
 //! ```
 use abkit_core::filter::{Init, TrackState};
 use abkit_core::irregular::{AbDesign, AbFixed, GainLaw};
@@ -72,7 +73,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|s| s.parse::<usize>())
         .collect::<Result<Vec<_>, _>>()?;
     let &[n, len, reps, ..] = &a[..] else {
-        return Err("usage: irrbench N_TRACKS LEN REPS [REGULAR]".into());
+        return Err(
+            "usage: irrbench N_TRACKS LEN REPS [1: steps 0.1 / 0.2, 2: whole seconds]".into(),
+        );
     };
     let mut s = 12345u64;
     let mut r = || {
@@ -86,10 +89,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for _ in 0..n {
         let mut tk = 0.0;
         for _ in 0..len {
-            tk += if a.len() > 3 {
-                0.1 * (1.0 + (r() < 0.1) as u32 as f64)
-            } else {
-                -0.1 * (1.0 - r()).ln()
+            tk += match a.get(3) {
+                Some(1) => 0.1 * (1.0 + (r() < 0.1) as u32 as f64),
+                // whole seconds, 1 % of the reports missed
+                Some(2) => 1.0 + (r() < 0.01) as u32 as f64,
+                _ => -0.1 * (1.0 - r()).ln(),
             };
             t.push(tk);
             z.push(2.0 * tk + r());

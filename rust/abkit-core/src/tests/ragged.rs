@@ -109,6 +109,56 @@ fn ragged_equals_each_track_alone_and_any_blocking() {
     }
 }
 
+/// Timestamps on a grid (whole seconds, every 37th report missed): the
+/// vector lanes reuse the design law's gains while every slot's dt repeats.
+/// Grid tracks mixed with irregular ones (blocks where only some slots
+/// repeat), missed measurements: bit-identical to each track alone (the
+/// scalar code, which computes the gains at every step).
+#[test]
+fn grid_timestamps_equal_each_track_alone() {
+    let lens = [3000usize, 2500, 17, 2048, 999, 1500, 1200, 700, 64, 1];
+    let mut offsets = vec![0i64];
+    for l in lens {
+        offsets.push(offsets.last().unwrap() + l as i64);
+    }
+    let n = *offsets.last().unwrap() as usize;
+    let mut t = vec![0.0; n];
+    for i in 0..lens.len() {
+        let (a, b) = (offsets[i] as usize, offsets[i + 1] as usize);
+        let mut tk = (i * 100) as f64;
+        for (k, tv) in t[a..b].iter_mut().enumerate() {
+            tk += if i % 3 == 2 {
+                0.5 + ((k * 7919) % 101) as f64 / 101.0
+            } else if (a + k) % 37 == 0 {
+                2.0
+            } else {
+                1.0
+            };
+            *tv = tk;
+        }
+    }
+    let z: Vec<f64> = (0..n)
+        .map(|g| {
+            t[g] * 2.0 + ((g * 37) % 101) as f64 * 0.1 + if g % 23 == 0 { f64::NAN } else { 0.0 }
+        })
+        .collect();
+    let o = opts(Init::TwoPoint, None, false);
+    let all = run(&offsets, &z, Some(&t), &o, false).unwrap();
+    for i in 0..lens.len() {
+        let (a, b) = (offsets[i] as usize, offsets[i + 1] as usize);
+        let one = run(&[0, (b - a) as i64], &z[a..b], Some(&t[a..b]), &o, false).unwrap();
+        for k in 0..b - a {
+            for c in 0..2 {
+                let (u, v) = (all.out[c * n + a + k], one.out[c * (b - a) + k]);
+                assert!(
+                    u.to_bits() == v.to_bits(),
+                    "track {i} sample {k}: {u} vs {v}"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn duplicates_raise_with_track_and_sample_or_are_dropped() {
     let z = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
