@@ -26,13 +26,6 @@ fn bench<F: IoFloat>(name: &str, n: usize, len: usize, reps: usize) -> abkit_cor
     let meas = Measurements::contiguous(&z, n, len, 1)?;
     let mut states = vec![TrackState::default(); n];
     let mut out = vec![F::from_f64(0.0); 3 * n * len];
-    if std::env::var_os("GB_ADDR").is_some() {
-        eprintln!(
-            "z % 4096 = {}, out % 4096 = {}",
-            z.as_ptr() as usize % 4096,
-            out.as_ptr() as usize % 4096
-        );
-    }
     let mut best = f64::INFINITY;
     for _ in 0..reps {
         states.fill(TrackState::default());

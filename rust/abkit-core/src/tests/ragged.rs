@@ -96,14 +96,24 @@ fn ragged_equals_each_track_alone_and_any_blocking() {
         .map(|g| g as f64 * 0.25 + ((g * 13) % 7) as f64 * 0.01)
         .collect();
     let o = opts(Init::TwoPoint, Some(2.0), false);
-    let all = run(&offsets, &z, Some(&t), &o, true).unwrap();
-    for i in 0..lens.len() {
+    assert_each_track_alone(&offsets, &z, &t, &o, true);
+}
+
+/// The batch (in parallel or not) gives each track the bits of the track
+/// run alone.
+fn assert_each_track_alone(offsets: &[i64], z: &[f64], t: &[f64], o: &Options, parallel: bool) {
+    let n = z.len();
+    let all = run(offsets, z, Some(t), o, parallel).unwrap();
+    for i in 0..offsets.len() - 1 {
         let (a, b) = (offsets[i] as usize, offsets[i + 1] as usize);
-        let one = run(&[0, (b - a) as i64], &z[a..b], Some(&t[a..b]), &o, false).unwrap();
+        let one = run(&[0, (b - a) as i64], &z[a..b], Some(&t[a..b]), o, false).unwrap();
         for k in 0..b - a {
             for c in 0..2 {
                 let (u, v) = (all.out[c * n + a + k], one.out[c * (b - a) + k]);
-                assert!(u.to_bits() == v.to_bits(), "track {i} sample {k}");
+                assert!(
+                    u.to_bits() == v.to_bits(),
+                    "track {i} sample {k}: {u} vs {v}"
+                );
             }
         }
     }
@@ -142,21 +152,7 @@ fn grid_timestamps_equal_each_track_alone() {
             t[g] * 2.0 + ((g * 37) % 101) as f64 * 0.1 + if g % 23 == 0 { f64::NAN } else { 0.0 }
         })
         .collect();
-    let o = opts(Init::TwoPoint, None, false);
-    let all = run(&offsets, &z, Some(&t), &o, false).unwrap();
-    for i in 0..lens.len() {
-        let (a, b) = (offsets[i] as usize, offsets[i + 1] as usize);
-        let one = run(&[0, (b - a) as i64], &z[a..b], Some(&t[a..b]), &o, false).unwrap();
-        for k in 0..b - a {
-            for c in 0..2 {
-                let (u, v) = (all.out[c * n + a + k], one.out[c * (b - a) + k]);
-                assert!(
-                    u.to_bits() == v.to_bits(),
-                    "track {i} sample {k}: {u} vs {v}"
-                );
-            }
-        }
-    }
+    assert_each_track_alone(&offsets, &z, &t, &opts(Init::TwoPoint, None, false), false);
 }
 
 #[test]
