@@ -873,7 +873,11 @@ class _TableReader:
                 types[c] = pa.float64()
             elif self.given is not None or c == self.id_col:
                 types[c] = pa.string()  # passed through as written
-        self._fh = open(self.path, "rb")
+        # A native file, not a Python one: Arrow's read-ahead thread must never
+        # need the GIL, or an error that ends the process while it is reading
+        # aborts the interpreter at exit ("terminate called without an active
+        # exception": the thread is killed taking the GIL during finalisation).
+        self._fh = pa.OSFile(self.path, "rb")
         try:
             reader = pa.csv.open_csv(self._fh, read_options=pa.csv.ReadOptions(block_size=1 << 22),
                                      convert_options=pa.csv.ConvertOptions(column_types=types))
