@@ -138,6 +138,25 @@ def test_lanes_large_output_streamed(dtype, ntr, n):
     assert again.states is out and np.array_equal(out, lanes.states, equal_nan=True)
 
 
+@pytest.mark.parametrize("dtype,ntr,n", [(np.float64, 603, 1024), (np.float32, 1203, 1024), (np.float64, 140, 4096)])
+def test_power_of_two_rows_streamed(dtype, ntr, n):
+    # Streamed outputs (>= 8 MiB) of rows a multiple of 2 KiB long run in the
+    # flat kernel on AVX2 CPUs (the row lanes' stores alias modulo 4 KiB):
+    # the same bits as the scalar loop, also when continuing with state=.
+    rng = np.random.default_rng(5)
+    z = _z(rng, ntr, n, "random", dtype)
+    f = AlphaBetaFilter(0.4, 0.1, 1.0)
+    whole = f.run(z)
+    idx = np.r_[0:9, ntr // 2 : ntr // 2 + 17, ntr - 10 : ntr]
+    scalar = f.run(z[idx], return_residuals=True)
+    assert np.array_equal(whole.states[:, idx], scalar.states, equal_nan=True)
+    assert np.array_equal(whole.state.x[idx], scalar.state.x, equal_nan=True)
+    again = f.run(z, state=whole.state)
+    ref = f.run(z, state=whole.state, return_residuals=True)
+    assert np.array_equal(again.states, ref.states, equal_nan=True)
+    assert np.array_equal(again.state.x, ref.state.x, equal_nan=True)
+
+
 def test_vector_lanes_equal_scalar_lanes_bitwise(tmp_path):
     # The same batch in a process with the AVX-512 lanes switched off
     # (ABKIT_DISABLE_SIMD=1: the scalar lanes) gives the same bits.

@@ -1942,8 +1942,9 @@ pub fn filter_ab<T: IoFloat>(
 }
 
 /// Short contiguous rows (fewer than [`SIMD_MIN_SAMPLES`] samples, no
-/// residuals) through the flat vector kernel ([`flat`]): the rows are one
-/// flat sequence of tracks. `None` when it does not apply (the row kernels
+/// residuals), and on AVX2 streamed rows a multiple of 2 KiB long
+/// ([`aliased_rows`]), through the flat vector kernel ([`flat`]): the rows
+/// are one flat sequence of tracks. `None` when it does not apply (the row kernels
 /// run instead). Bit-identical to them.
 #[cfg(target_arch = "x86_64")]
 fn ab_flat_batch<T: IoFloat>(
@@ -1959,10 +1960,11 @@ fn ab_flat_batch<T: IoFloat>(
     let total = nt_.checked_mul(n)?;
     let rows_ok = z.s_sample == 1 && (z.s_track == n as isize || nt_ == 1);
     let kind = flat_kernel()?;
+    let nt = streamed::<T>(2 * total * std::mem::size_of::<T>(), true);
     if !simd::fits::<T>(0, 32)
         || z.m != 1
         || n == 0
-        || n >= SIMD_MIN_SAMPLES
+        || (n >= SIMD_MIN_SAMPLES && !(kind == FlatKernel::Avx2 && nt && aliased_rows::<T>(n)))
         || !rows_ok
         || states.len() != nt_
         || out.len() != 2 * total
@@ -1970,12 +1972,12 @@ fn ab_flat_batch<T: IoFloat>(
         return None;
     }
     let zs = z.data.get(z.base..z.base.checked_add(total)?)?;
-    let nt = streamed::<T>(2 * total * std::mem::size_of::<T>(), true);
     // The AVX2 short-row lanes where they were measured faster than the flat
     // kernel (`avx2::ab_short_rows`): z and outputs within the caches, short
     // rows in memory (SHORT_ROWS_MEM_MAX), or f32 with streamed outputs.
     let f64_ = simd::is_f64::<T>();
     let rows8 = kind == FlatKernel::Avx2
+        && n < SIMD_MIN_SAMPLES
         && !short_rows_flat()
         && (3 * total * std::mem::size_of::<T>() <= SHORT_ROWS_CACHED_BYTES
             || n <= SHORT_ROWS_MEM_MAX[usize::from(f64_)]
@@ -2068,6 +2070,25 @@ fn ab_flat_batch<T: IoFloat>(
             .collect()
     };
     Some(res.into_iter().collect())
+}
+
+/// Rows of `n` samples a multiple of 2 KiB long (`f64`: `n` a multiple
+/// of 256; `f32`: of 512): in the AVX2 row lanes the eight lanes' rows and
+/// both outputs then sit at one or two offsets modulo 4 KiB, and streamed
+/// stores to addresses that agree modulo 4 KiB run several times slower
+/// (docs/benchmarks.md, "Power-of-two row lengths"). With streamed
+/// outputs such rows run in the flat kernel instead, whose slots walk
+/// separate regions of the batch. Measured on an AMD EPYC (Zen 3), 10^7
+/// samples, ns per sample, row lanes -> flat kernel: `f64` 512 samples
+/// 6.2-6.3 -> 2.5-2.6, 768: 5.7 -> 2.3-2.9, 1,024: 5.2-6.2 -> 1.8-2.4,
+/// 1,280: 5.4-5.6 -> 2.5-2.7, 2,048: 5.1-5.6 -> 2.0-2.3, 4,096: 5.4-5.5
+/// -> 2.0-2.3; `f32` 512: 2.7-3.8 -> 1.8-2.1, 1,024: 3.3-4.0 -> 1.5-1.9,
+/// 2,048: 3.1-4.0 -> 1.9-2.0, 4,096: 3.5-4.0 -> 1.3-1.7. (Rows of 1,000
+/// `f64`: 1.3-1.8 in either.)
+#[cfg(target_arch = "x86_64")]
+fn aliased_rows<T>(n: usize) -> bool {
+    n.checked_mul(std::mem::size_of::<T>())
+        .is_some_and(|b| b.is_multiple_of(2048))
 }
 
 /// Most bytes of `z` and outputs for which short rows run in the AVX2
