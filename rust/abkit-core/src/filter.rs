@@ -1974,9 +1974,16 @@ fn ab_flat_batch<T: IoFloat>(
     let zs = z.data.get(z.base..z.base.checked_add(total)?)?;
     // The AVX2 short-row lanes where they were measured faster than the flat
     // kernel (`avx2::ab_short_rows`): z and outputs within the caches, short
-    // rows in memory (SHORT_ROWS_MEM_MAX), or f32 with streamed outputs.
+    // rows in memory (SHORT_ROWS_MEM_MAX), or f32 with streamed outputs. Also
+    // on AVX-512 CPUs (which have AVX2), except f64 rows longer than
+    // SHORT_ROWS_AVX512_F64_MAX (docs/benchmarks.md, session 12).
     let f64_ = simd::is_f64::<T>();
-    let rows8 = kind == FlatKernel::Avx2
+    let lanes_cpu = match kind {
+        FlatKernel::Avx2 => true,
+        FlatKernel::Avx512 => simd::avx2_available() && !(f64_ && n > SHORT_ROWS_AVX512_F64_MAX),
+        FlatKernel::Avx512Generic => false,
+    };
+    let rows8 = lanes_cpu
         && n < SIMD_MIN_SAMPLES
         && !short_rows_flat()
         && (3 * total * std::mem::size_of::<T>() <= SHORT_ROWS_CACHED_BYTES
@@ -2024,8 +2031,9 @@ fn ab_flat_batch<T: IoFloat>(
         };
         let zc = &zs[j0 * n..(j0 + cn) * n];
         if rows8 {
-            // SAFETY: `flat_kernel()` checked AVX2 and FMA; T is f32 or f64
-            // (`fits`).
+            // SAFETY: `lanes_cpu`: AVX2 and FMA (`flat_kernel()` checked
+            // them for the AVX2 kind, `avx2_available()` on AVX-512 CPUs);
+            // T is f32 or f64 (`fits`).
             let pr = if shared {
                 &params[..1]
             } else {
@@ -2107,6 +2115,13 @@ const SHORT_ROWS_CACHED_BYTES: usize = 12 << 20;
 /// 1.7, 48: 2.0 -> 1.3, 64: 1.71 -> 1.24, 80: 1.37 -> 1.52.
 #[cfg(target_arch = "x86_64")]
 const SHORT_ROWS_MEM_MAX: [usize; 2] = [64, 80];
+
+/// On AVX-512 CPUs, f64 rows longer than this stay in the AVX-512 flat
+/// kernel: on an Intel Xeon (AVX-512) the short-row lanes were faster for
+/// f64 rows of 5-100 samples and slower for rows of 200 within the caches
+/// (docs/benchmarks.md, "Run of 2026-12-02 on an Intel Xeon with AVX-512").
+#[cfg(target_arch = "x86_64")]
+const SHORT_ROWS_AVX512_F64_MAX: usize = 128;
 
 /// `ABKIT_SHORT_ROWS_FLAT` set to anything but `0`: short rows always run
 /// in the flat kernel (for tests and comparisons). Read once.
