@@ -285,9 +285,10 @@ def test_general_lanes_short_rows_streamed(n):
 # The general kernel's AVX-512 lanes (8 tracks per vector register, groups of
 # 8 where the CPU has AVX-512, else groups of 4 / scalar): the same bits as
 # the scalar per-track loop in process, and as a process with
-# ABKIT_DISABLE_SIMD=1 (scalar lanes, groups of 4). The 8-lane kernel is
-# opt-in for now (ABKIT_GEN_AVX512=1, read once per process), so the child
-# processes switch it on; on a CPU without AVX-512 they run the 4-lane AVX2
+# ABKIT_DISABLE_SIMD=1 (scalar lanes, groups of 4). By default the 8-lane
+# kernel runs only float64 rows of >= 512 samples; ABKIT_GEN_AVX512=1 (read
+# once per process) runs it for every shape and dtype, so the child
+# processes set it; on a CPU without AVX-512 they run the 4-lane AVX2
 # path / scalar lanes, and the comparisons still hold.
 # ---------------------------------------------------------------------------
 def _run_child(code, args, env):

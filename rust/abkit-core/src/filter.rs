@@ -1261,17 +1261,18 @@ pub const GEN_LANES: usize = 4;
 /// Largest group of the general kernel: eight tracks with the AVX-512 lanes.
 const GEN_GROUP_MAX: usize = 2 * GEN_LANES;
 
-/// Tracks per group of the general kernel: eight where the AVX-512 lanes run
-/// (`f32`/`f64`, one or two measurement components; opt-in for now, see
-/// `simd::gen8_enabled`), else `GEN_LANES`. A
-/// group of eight that cannot run as one vector group runs as two groups of
-/// `GEN_LANES`, so every track takes the same path (and gives the same bits)
-/// whatever the group size.
-fn gen_group_size<T: 'static, const M: usize>() -> usize {
+/// Tracks per group of the general kernel for rows of `n` samples: eight
+/// where the AVX-512 lanes run (one or two measurement components; by
+/// default `f64` rows of at least `simd::GEN8_MIN_SAMPLES`, see
+/// `simd::gen8_enabled`), else `GEN_LANES`. A group of eight that cannot run
+/// as one vector group runs as two groups of `GEN_LANES`, so every track
+/// takes the same path (and gives the same bits) whatever the group size.
+fn gen_group_size<T: 'static, const M: usize>(n: usize) -> usize {
     #[cfg(target_arch = "x86_64")]
-    if uses_fma() && simd::gen8_enabled() && simd::gen_fits::<T>(M) {
+    if uses_fma() && simd::gen8_enabled::<T>(n) && simd::gen_fits::<T>(M) {
         return GEN_GROUP_MAX;
     }
+    let _ = n;
     GEN_LANES
 }
 
@@ -1319,7 +1320,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     #[cfg(target_arch = "x86_64")]
     if FMA
         && group.len() == simd::GEN_LANES8
-        && gen_group_size::<T, M>() == simd::GEN_LANES8
+        && gen_group_size::<T, M>(n) == simd::GEN_LANES8
         && group
             .iter()
             .all(|(i, st, o)| st.phase == 2.0 && o.resid.is_none() && z.row(*i).is_some())
@@ -1351,7 +1352,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         let ahead =
             (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0).then(|| (L * z.s_track as usize, L * n));
         let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), true);
-        // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled()` checked
+        // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled` checked
         // AVX-512F and FMA on this CPU.
         unsafe { simd::gen_lanes8::<T, N, M>(&cs, &mut xs, kmax, n, &rows, group, ahead, nt) };
         for (l, (_, st, _)) in group.iter_mut().enumerate() {
@@ -1657,7 +1658,7 @@ fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         // Groups of 8 segments on the AVX-512 lanes where the CPU has them
         // (16 segments either way: the same bits).
         let gl = if FMA {
-            gen_group_size::<T, M>()
+            gen_group_size::<T, M>(ls)
         } else {
             GEN_LANES
         };
@@ -1669,7 +1670,7 @@ fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
             if gl == simd::GEN_LANES8 {
                 const L: usize = simd::GEN_LANES8;
                 let rows: [&[T]; L] = std::array::from_fn(|l| zrows[gi * L + l]);
-                // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled()`
+                // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled`
                 // checked AVX-512F and FMA on this CPU.
                 unsafe { simd::gen_lanes8::<T, N, M>(&[c; L], xs, 0, ls, &rows, grp, None, nt) };
                 return;
@@ -1863,7 +1864,7 @@ pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
         out,
         resid,
         parallel,
-        gen_group_size::<T, M>(),
+        gen_group_size::<T, M>(z.n_samples),
         |group| {
             gen_group_dispatch(gains, &consts, init, z, group, parallel);
             if let Some(sm) = &smoother {

@@ -8,6 +8,9 @@
 //! load), an 8 x 8 transpose turns the eight rows into eight vectors of "the
 //! same step of every track", eight vector steps run the recursion, and two
 //! more transposes turn the estimates back into rows for eight-wide stores.
+//! A block of 64 samples without NaN takes the steps without the masks of
+//! missed detections (the same operations on valid samples). The `z` rows
+//! are prefetched [`Z_AHEAD`] samples ahead.
 //! The arithmetic of each slot is exactly the scalar [`ab_step`] with FMA
 //! (the same fused operations in the same order), so results are
 //! bit-identical to the scalar kernel: the lanes that run here and the ones
@@ -23,6 +26,11 @@ use std::any::TypeId;
 use std::arch::x86_64::*;
 
 const W: usize = 8;
+
+/// Software prefetch distance of the alpha-beta lanes' `z` rows, in samples
+/// (8 lines of f64, 4 of f32): on the AVX-512 Xeon, 1,000 x 10,000 f64 1.8
+/// -> 1.6 ns per sample, f32 1.08 -> 0.97 (docs/benchmarks.md, session 13).
+const Z_AHEAD: usize = 64;
 
 use super::{ab_step, gen_step, prefetch, AbConst, GenConst, IoFloat, Job, AB_LANES, GEN_LANES};
 
@@ -218,23 +226,48 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
                         prefetch(vs[l].as_ptr().wrapping_add(dout + at));
                     }
                 }
+                if h == 0 {
+                    prefetch(z[l].as_ptr().wrapping_add(at + Z_AHEAD));
+                }
                 // SAFETY: at + W <= k[l] + blocks * sb <= n = z[l].len().
                 rows[l] = unsafe { load8(z[l].as_ptr().add(at)) };
             }
+            // A NaN among the 64 samples makes their sum NaN (Inf - Inf only
+            // sends a block without NaN down the general steps: same bits).
+            let s01 = _mm512_add_pd(rows[0], rows[1]);
+            let s23 = _mm512_add_pd(rows[2], rows[3]);
+            let s45 = _mm512_add_pd(rows[4], rows[5]);
+            let s67 = _mm512_add_pd(rows[6], rows[7]);
+            let sum = _mm512_add_pd(_mm512_add_pd(s01, s23), _mm512_add_pd(s45, s67));
+            let clean = _mm512_cmp_pd_mask::<_CMP_UNORD_Q>(sum, sum) == 0;
             transpose8(&mut rows);
             let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
-            for j in 0..W {
-                let zj = rows[j];
-                let xp = _mm512_fmadd_pd(ct, vv, xv);
-                let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
-                let zz = _mm512_maskz_mov_pd(valid, zj);
-                let c1 = _mm512_mask_blend_pd(valid, one, coma);
-                let g = _mm512_maskz_mov_pd(valid, cg2);
-                let w = _mm512_fmadd_pd(g, zz, vv);
-                xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(calpha, zz));
-                vv = _mm512_fnmadd_pd(g, xp, w);
-                xo[j] = xv;
-                vo[j] = vv;
+            if clean {
+                // The steps below with every z valid (zz = z, c1 = 1 - alpha,
+                // g = g2): the same operations, four fewer per step.
+                for j in 0..W {
+                    let zj = rows[j];
+                    let xp = _mm512_fmadd_pd(ct, vv, xv);
+                    let w = _mm512_fmadd_pd(cg2, zj, vv);
+                    xv = _mm512_fmadd_pd(coma, xp, _mm512_mul_pd(calpha, zj));
+                    vv = _mm512_fnmadd_pd(cg2, xp, w);
+                    xo[j] = xv;
+                    vo[j] = vv;
+                }
+            } else {
+                for j in 0..W {
+                    let zj = rows[j];
+                    let xp = _mm512_fmadd_pd(ct, vv, xv);
+                    let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
+                    let zz = _mm512_maskz_mov_pd(valid, zj);
+                    let c1 = _mm512_mask_blend_pd(valid, one, coma);
+                    let g = _mm512_maskz_mov_pd(valid, cg2);
+                    let w = _mm512_fmadd_pd(g, zz, vv);
+                    xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(calpha, zz));
+                    vv = _mm512_fnmadd_pd(g, xp, w);
+                    xo[j] = xv;
+                    vo[j] = vv;
+                }
             }
             transpose8(xo);
             transpose8(vo);
@@ -704,18 +737,25 @@ pub(super) fn gen_fits<T: 'static>(m: usize) -> bool {
 /// Tracks of an AVX-512 general group.
 pub(super) const GEN_LANES8: usize = 8;
 
-/// Whether the AVX-512 general lanes ([`gen_lanes8`]) run: only where
-/// [`available`] and the environment variable `ABKIT_GEN_AVX512` is set to
-/// anything but `0` (checked once). Opt-in until the kernel has been
-/// verified bit for bit on an AVX-512 machine (tests/test_filters_lanes.py,
-/// `test_general_lanes8_equal_scalar_bitwise`, switches it on in its child
-/// process); results are the same bits either way.
-pub(super) fn gen8_enabled() -> bool {
+/// Rows at least this long run in the AVX-512 general lanes by default
+/// (float64 only): on the AVX-512 Xeon (3-state, one thread, outputs reused)
+/// 1,000 x 10,000 f64 4.5 -> 3.4 ns per sample, 3,000 x 1,000 3.1 -> 2.6;
+/// shorter rows and float32 were slower than in the 4-lane kernel (2,000 x
+/// 100 f64 2.3 -> 3.7, 1,000 x 10,000 f32 2.1 -> 2.7; docs/benchmarks.md,
+/// session 13).
+pub(super) const GEN8_MIN_SAMPLES: usize = 512;
+
+/// Whether the AVX-512 general lanes ([`gen_lanes8`]) run for rows of `n`
+/// samples of `T`: where [`available`], for `f64` rows of at least
+/// [`GEN8_MIN_SAMPLES`]. The environment variable `ABKIT_GEN_AVX512` (read
+/// once) overrides: `0` never, anything else always (f32 and short rows
+/// too). Results are the same bits either way (tests/test_filters_lanes.py,
+/// `test_general_lanes8_equal_scalar_bitwise`).
+pub(super) fn gen8_enabled<T: 'static>(n: usize) -> bool {
     use std::sync::OnceLock;
-    static OK: OnceLock<bool> = OnceLock::new();
-    *OK.get_or_init(|| {
-        available() && std::env::var_os("ABKIT_GEN_AVX512").is_some_and(|v| v != "0")
-    })
+    static MODE: OnceLock<Option<bool>> = OnceLock::new();
+    let mode = *MODE.get_or_init(|| std::env::var_os("ABKIT_GEN_AVX512").map(|v| v != "0"));
+    available() && mode.unwrap_or(is_f64::<T>() && n >= GEN8_MIN_SAMPLES)
 }
 
 /// The eight general lanes over samples `k0..n` (AVX-512; the contract of

@@ -487,12 +487,26 @@ fn absurd_strides_are_an_error_not_an_overflow() {
 /// stores.
 #[cfg(target_arch = "x86_64")]
 fn avx2_case<T: IoFloat>(off: usize, k0: usize, n: usize, nt: bool) {
+    lanes_case::<T>(false, false, off, k0, n, nt)
+}
+
+/// [`avx2_case`] for the AVX2 lanes or (`avx512`) the AVX-512 lanes
+/// (`simd::ab_lanes8`); NaN in most blocks of samples, or (`sparse`) in a
+/// few runs only, so that blocks without NaN (the steps without masks) and
+/// blocks with NaN alternate.
+#[cfg(target_arch = "x86_64")]
+fn lanes_case<T: IoFloat>(avx512: bool, sparse: bool, off: usize, k0: usize, n: usize, nt: bool) {
     let lanes = AB_LANES;
     let stride = n + 19;
     let zf: Vec<f64> = (0..lanes * stride + 64)
         .map(|i| {
             let h = (i.wrapping_mul(2654435761) >> 7) % 1000;
-            if h < 60 || (i % 97 > 80 && i % 97 < 86) {
+            let missed = if sparse {
+                i % 389 < 3 || h == 7
+            } else {
+                h < 60 || (i % 97 > 80 && i % 97 < 86)
+            };
+            if missed {
                 f64::NAN
             } else {
                 h as f64 * 0.013 + (i % stride) as f64 * 0.7
@@ -533,7 +547,10 @@ fn avx2_case<T: IoFloat>(off: usize, k0: usize, n: usize, nt: bool) {
                 vr = rv;
                 used = starts[l] + n;
             }
-            if vector {
+            if vector && avx512 {
+                // SAFETY: checked by the caller (avx512f and fma).
+                unsafe { simd::ab_lanes8(&c, &mut x, &mut v, k0, n, zr, xs, vs, None, nt) };
+            } else if vector {
                 // SAFETY: checked by the caller (avx2_available).
                 unsafe { avx2::ab_lanes8(&c, &mut x, &mut v, k0, n, zr, xs, vs, None, nt) };
             } else {
@@ -578,6 +595,30 @@ fn avx2_lanes_are_bit_identical_to_scalar_lanes() {
             for nt in [false, true] {
                 avx2_case::<f64>(off, k0, n, nt);
                 avx2_case::<f32>(off, k0, n, nt);
+                lanes_case::<f64>(false, true, off, k0, n, nt);
+                lanes_case::<f32>(false, true, off, k0, n, nt);
+            }
+        }
+    }
+}
+
+/// The AVX-512 alpha-beta lanes called directly against the scalar lanes
+/// (as [`avx2_lanes_are_bit_identical_to_scalar_lanes`]), with NaN dense
+/// and sparse (blocks without NaN take the steps without masks).
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn avx512_lanes_are_bit_identical_to_scalar_lanes() {
+    if !(std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("fma")) {
+        eprintln!("no AVX-512F+FMA on this CPU: AVX-512 lanes not tested");
+        return;
+    }
+    for off in 0..16 {
+        for (k0, n) in [(0, 32), (3, 47), (0, 256), (5, 263), (2, 300), (0, 1000)] {
+            for nt in [false, true] {
+                for sparse in [false, true] {
+                    lanes_case::<f64>(true, sparse, off, k0, n, nt);
+                    lanes_case::<f32>(true, sparse, off, k0, n, nt);
+                }
             }
         }
     }
