@@ -28,7 +28,7 @@
 
 use std::arch::x86_64::*;
 
-use super::simd::{is_f64, load8, store_line, transpose8};
+use super::simd::{clean_steps8, is_f64, load8, no_nan8, store_line, transpose8};
 use super::{AbConst, IoFloat, TrackState};
 use crate::Result;
 
@@ -475,8 +475,16 @@ unsafe fn compute<T: IoFloat>(
         let mut inj = inj;
         for h in 0..halves {
             let mut rows: [__m512d; W] = std::array::from_fn(|l| load8(src[l].add(h * W)));
+            let clean = inj.is_none() && no_nan8(&rows);
             transpose8(&mut rows);
             let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
+            if clean {
+                let c = [k.ct, k.calpha, k.coma, k.cg2];
+                clean_steps8(&rows, c, &mut k.xv, &mut k.vv, xo, vo);
+                transpose8(xo);
+                transpose8(vo);
+                continue;
+            }
             for j in 0..W {
                 if let Some((inject, shared)) = inj.as_mut() {
                     let p = h * W + j;

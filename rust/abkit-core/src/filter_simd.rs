@@ -107,6 +107,46 @@ pub(super) unsafe fn store_line<T: 'static>(p: *mut T, a: __m512d, b: __m512d, n
     }
 }
 
+/// Whether none of the 64 values of `rows` is NaN: a NaN makes their sum
+/// NaN (a NaN from Inf - Inf only gives a false `false`, which sends a block
+/// without NaN down the masked steps: the same bits).
+#[inline]
+#[target_feature(enable = "avx512f")]
+pub(super) fn no_nan8(rows: &[__m512d; W]) -> bool {
+    let s01 = _mm512_add_pd(rows[0], rows[1]);
+    let s23 = _mm512_add_pd(rows[2], rows[3]);
+    let s45 = _mm512_add_pd(rows[4], rows[5]);
+    let s67 = _mm512_add_pd(rows[6], rows[7]);
+    let sum = _mm512_add_pd(_mm512_add_pd(s01, s23), _mm512_add_pd(s45, s67));
+    _mm512_cmp_pd_mask::<_CMP_UNORD_Q>(sum, sum) == 0
+}
+
+/// Eight alpha-beta vector steps on transposed samples `zt` none of which is
+/// NaN, constants `[t, alpha, 1 - alpha, g2]` per slot: the operations of
+/// the masked steps with every sample valid (`zz = z`, `c1 = 1 - alpha`,
+/// `g = g2`), so the same bits, four operations fewer per step. The
+/// estimates after each step go to `xo`, `vo`.
+#[inline]
+#[target_feature(enable = "avx512f,fma")]
+pub(super) fn clean_steps8(
+    zt: &[__m512d; W],
+    [ct, calpha, coma, cg2]: [__m512d; 4],
+    xv: &mut __m512d,
+    vv: &mut __m512d,
+    xo: &mut [__m512d; W],
+    vo: &mut [__m512d; W],
+) {
+    for j in 0..W {
+        let zj = zt[j];
+        let xp = _mm512_fmadd_pd(ct, *vv, *xv);
+        let w = _mm512_fmadd_pd(cg2, zj, *vv);
+        *xv = _mm512_fmadd_pd(coma, xp, _mm512_mul_pd(calpha, zj));
+        *vv = _mm512_fnmadd_pd(cg2, xp, w);
+        xo[j] = *xv;
+        vo[j] = *vv;
+    }
+}
+
 /// In-place transpose of the 8 x 8 matrix whose rows are `r`.
 #[inline]
 #[target_feature(enable = "avx512f")]
@@ -232,28 +272,11 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
                 // SAFETY: at + W <= k[l] + blocks * sb <= n = z[l].len().
                 rows[l] = unsafe { load8(z[l].as_ptr().add(at)) };
             }
-            // A NaN among the 64 samples makes their sum NaN (Inf - Inf only
-            // sends a block without NaN down the general steps: same bits).
-            let s01 = _mm512_add_pd(rows[0], rows[1]);
-            let s23 = _mm512_add_pd(rows[2], rows[3]);
-            let s45 = _mm512_add_pd(rows[4], rows[5]);
-            let s67 = _mm512_add_pd(rows[6], rows[7]);
-            let sum = _mm512_add_pd(_mm512_add_pd(s01, s23), _mm512_add_pd(s45, s67));
-            let clean = _mm512_cmp_pd_mask::<_CMP_UNORD_Q>(sum, sum) == 0;
+            let clean = no_nan8(&rows);
             transpose8(&mut rows);
             let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
             if clean {
-                // The steps below with every z valid (zz = z, c1 = 1 - alpha,
-                // g = g2): the same operations, four fewer per step.
-                for j in 0..W {
-                    let zj = rows[j];
-                    let xp = _mm512_fmadd_pd(ct, vv, xv);
-                    let w = _mm512_fmadd_pd(cg2, zj, vv);
-                    xv = _mm512_fmadd_pd(coma, xp, _mm512_mul_pd(calpha, zj));
-                    vv = _mm512_fnmadd_pd(cg2, xp, w);
-                    xo[j] = xv;
-                    vo[j] = vv;
-                }
+                clean_steps8(&rows, [ct, calpha, coma, cg2], &mut xv, &mut vv, xo, vo);
             } else {
                 for j in 0..W {
                     let zj = rows[j];
