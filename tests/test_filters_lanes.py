@@ -417,3 +417,24 @@ def test_general_lanes_large_output_streamed_f32(tmp_path):
     idx = np.r_[0:5, 301:313, 1390:1400]
     scalar = AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5).run(z[idx], return_residuals=True)
     assert np.array_equal(lanes[:, idx], scalar.states, equal_nan=True)
+
+
+@pytest.mark.parametrize(
+    "shape",
+    [
+        (16, 600),  # f64 rows >= 512 samples: 8-lane kernel by default on AVX-512
+        (3000, 120),  # 3 x 3000 x 120 f64 = 8.6 MB >= 8 MiB: streamed, >= 100 samples
+        (3000, 90),  # streamed but shorter than 100: 4-lane kernel
+    ],
+)
+def test_general_default_route_equals_scalar_bitwise(shape):
+    # The default choice between the 4- and 8-lane general kernels (in this
+    # process, no environment override) against the scalar per-track loop
+    # (residuals requested): the same bits whichever kernel runs.
+    rng = np.random.default_rng(zlib.crc32(repr(shape).encode()))
+    z = fr.with_nans(rng, fr.kinematic_z(rng, shape[0], shape[1], 0.5), "random")
+    f = AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5)
+    lanes = f.run(z)
+    scalar = f.run(z, return_residuals=True)
+    assert np.array_equal(lanes.states, scalar.states, equal_nan=True)
+    assert np.array_equal(lanes.state.x, scalar.state.x, equal_nan=True)

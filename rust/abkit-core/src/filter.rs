@@ -1261,19 +1261,25 @@ pub const GEN_LANES: usize = 4;
 /// Largest group of the general kernel: eight tracks with the AVX-512 lanes.
 const GEN_GROUP_MAX: usize = 2 * GEN_LANES;
 
-/// Tracks per group of the general kernel for rows of `n` samples: eight
-/// where the AVX-512 lanes run (one or two measurement components; by
-/// default `f64` rows of at least `simd::GEN8_MIN_SAMPLES`, see
+/// Tracks per group of the general kernel for rows of `n` samples (outputs
+/// streamed if `nt`): eight where the AVX-512 lanes run (one or two
+/// measurement components; by default `f64` rows long enough, see
 /// `simd::gen8_enabled`), else `GEN_LANES`. A group of eight that cannot run
 /// as one vector group runs as two groups of `GEN_LANES`, so every track
 /// takes the same path (and gives the same bits) whatever the group size.
-fn gen_group_size<T: 'static, const M: usize>(n: usize) -> usize {
+fn gen_group_size<T: 'static, const M: usize>(n: usize, nt: bool) -> usize {
     #[cfg(target_arch = "x86_64")]
-    if uses_fma() && simd::gen8_enabled::<T>(n) && simd::gen_fits::<T>(M) {
+    if uses_fma() && simd::gen8_enabled::<T>(n, nt) && simd::gen_fits::<T>(M) {
         return GEN_GROUP_MAX;
     }
-    let _ = n;
+    let _ = (n, nt);
     GEN_LANES
+}
+
+/// Whether the general kernel streams the outputs of `n_tracks` rows of `n`
+/// samples with `N` states.
+fn gen_streamed<T: 'static, const N: usize>(n_tracks: usize, n: usize) -> bool {
+    streamed::<T>(N * n_tracks * n * std::mem::size_of::<T>(), true)
 }
 
 /// General fixed-gain filtering of a group of tracks: start-up per track,
@@ -1320,7 +1326,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     #[cfg(target_arch = "x86_64")]
     if FMA
         && group.len() == simd::GEN_LANES8
-        && gen_group_size::<T, M>(n) == simd::GEN_LANES8
+        && gen_group_size::<T, M>(n, gen_streamed::<T, N>(z.n_tracks, n)) == simd::GEN_LANES8
         && group
             .iter()
             .all(|(i, st, o)| st.phase == 2.0 && o.resid.is_none() && z.row(*i).is_some())
@@ -1351,7 +1357,7 @@ fn gen_group<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
         }
         let ahead =
             (n <= PREFETCH_MAX_SAMPLES && z.s_track > 0).then(|| (L * z.s_track as usize, L * n));
-        let nt = streamed::<T>(N * z.n_tracks * n * std::mem::size_of::<T>(), true);
+        let nt = gen_streamed::<T, N>(z.n_tracks, n);
         // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled` checked
         // AVX-512F and FMA on this CPU.
         unsafe { simd::gen_lanes8::<T, N, M>(&cs, &mut xs, kmax, n, &rows, group, ahead, nt) };
@@ -1657,12 +1663,12 @@ fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
             std::array::from_fn(|j| &row[(k0 + j * ls) * M..(k0 + (j + 1) * ls) * M]);
         // Groups of 8 segments on the AVX-512 lanes where the CPU has them
         // (16 segments either way: the same bits).
+        let nt = gen_streamed::<T, N>(1, n);
         let gl = if FMA {
-            gen_group_size::<T, M>(ls)
+            gen_group_size::<T, M>(ls, nt)
         } else {
             GEN_LANES
         };
-        let nt = streamed::<T>(N * n * std::mem::size_of::<T>(), true);
         type Seg<'s, 'j, T, const N: usize> =
             (usize, (&'s mut [Job<'j, T, N>], &'s mut [[f64; N]]));
         let run = |(gi, (grp, xs)): Seg<'_, '_, T, N>| {
@@ -1864,7 +1870,7 @@ pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
         out,
         resid,
         parallel,
-        gen_group_size::<T, M>(z.n_samples),
+        gen_group_size::<T, M>(z.n_samples, gen_streamed::<T, N>(z.n_tracks, z.n_samples)),
         |group| {
             gen_group_dispatch(gains, &consts, init, z, group, parallel);
             if let Some(sm) = &smoother {

@@ -761,24 +761,36 @@ pub(super) fn gen_fits<T: 'static>(m: usize) -> bool {
 pub(super) const GEN_LANES8: usize = 8;
 
 /// Rows at least this long run in the AVX-512 general lanes by default
-/// (float64 only): on the AVX-512 Xeon (3-state, one thread, outputs reused)
-/// 1,000 x 10,000 f64 4.5 -> 3.4 ns per sample, 3,000 x 1,000 3.1 -> 2.6;
-/// shorter rows and float32 were slower than in the 4-lane kernel (2,000 x
-/// 100 f64 2.3 -> 3.7, 1,000 x 10,000 f32 2.1 -> 2.7; docs/benchmarks.md,
-/// session 13).
+/// (float64 only), or at least [`GEN8_MIN_SAMPLES_STREAMED`] if the outputs
+/// are streamed. On the AVX-512 Xeon (3-state, one thread, outputs reused,
+/// ns per sample, 4 lanes -> 8 lanes): 1,000 x 10,000 f64 4.5 -> 3.2-3.4,
+/// 3,000 x 1,000 2.9-3.1 -> 2.6-2.8, 50,000 x 200 5.0 -> 3.8, 100,000 x 100
+/// 6.6 -> 5.4; but 100,000 x 64 6.0 -> 9.0, 2,000 x 100 (in the caches) 2.3
+/// -> 3.7; float32 was faster on some shapes and slower on others (1,000 x
+/// 10,000 1.9 -> 2.1, 20,000 x 500 3.9 -> 2.6), so it stays in the 4-lane
+/// kernel (docs/benchmarks.md, session 13).
 pub(super) const GEN8_MIN_SAMPLES: usize = 512;
 
+/// [`GEN8_MIN_SAMPLES`] for streamed outputs.
+pub(super) const GEN8_MIN_SAMPLES_STREAMED: usize = 100;
+
 /// Whether the AVX-512 general lanes ([`gen_lanes8`]) run for rows of `n`
-/// samples of `T`: where [`available`], for `f64` rows of at least
-/// [`GEN8_MIN_SAMPLES`]. The environment variable `ABKIT_GEN_AVX512` (read
-/// once) overrides: `0` never, anything else always (f32 and short rows
-/// too). Results are the same bits either way (tests/test_filters_lanes.py,
+/// samples of `T` (outputs streamed if `nt`): where [`available`], for `f64`
+/// rows of at least [`GEN8_MIN_SAMPLES`] ([`GEN8_MIN_SAMPLES_STREAMED`] if
+/// `nt`). The environment variable `ABKIT_GEN_AVX512` (read once)
+/// overrides: `0` never, anything else always (f32 and short rows too).
+/// Results are the same bits either way (tests/test_filters_lanes.py,
 /// `test_general_lanes8_equal_scalar_bitwise`).
-pub(super) fn gen8_enabled<T: 'static>(n: usize) -> bool {
+pub(super) fn gen8_enabled<T: 'static>(n: usize, nt: bool) -> bool {
     use std::sync::OnceLock;
     static MODE: OnceLock<Option<bool>> = OnceLock::new();
     let mode = *MODE.get_or_init(|| std::env::var_os("ABKIT_GEN_AVX512").map(|v| v != "0"));
-    available() && mode.unwrap_or(is_f64::<T>() && n >= GEN8_MIN_SAMPLES)
+    let min = if nt {
+        GEN8_MIN_SAMPLES_STREAMED
+    } else {
+        GEN8_MIN_SAMPLES
+    };
+    available() && mode.unwrap_or(is_f64::<T>() && n >= min)
 }
 
 /// The eight general lanes over samples `k0..n` (AVX-512; the contract of
