@@ -1277,9 +1277,14 @@ fn gen_group_size<T: 'static, const M: usize>(n: usize, nt: bool) -> usize {
 }
 
 /// Whether the general kernel streams the outputs of `n_tracks` rows of `n`
-/// samples with `N` states.
+/// samples with `N` states (saturating: called before the shapes are
+/// validated).
 fn gen_streamed<T: 'static, const N: usize>(n_tracks: usize, n: usize) -> bool {
-    streamed::<T>(N * n_tracks * n * std::mem::size_of::<T>(), true)
+    let bytes = N
+        .saturating_mul(n_tracks)
+        .saturating_mul(n)
+        .saturating_mul(std::mem::size_of::<T>());
+    streamed::<T>(bytes, true)
 }
 
 /// General fixed-gain filtering of a group of tracks: start-up per track,
