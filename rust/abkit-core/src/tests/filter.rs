@@ -480,20 +480,13 @@ fn absurd_strides_are_an_error_not_an_overflow() {
     }
 }
 
-/// The AVX2 lanes called directly (whatever the CPU would dispatch to)
-/// against the scalar lanes: bit-identical states and outputs for f64 and
-/// f32, rows at every element offset (heads of 0..15 samples), start
-/// samples k0 > 0, tails, NaN runs, per-lane gains, temporal and streamed
-/// stores.
-#[cfg(target_arch = "x86_64")]
-fn avx2_case<T: IoFloat>(off: usize, k0: usize, n: usize, nt: bool) {
-    lanes_case::<T>(false, false, off, k0, n, nt)
-}
-
-/// [`avx2_case`] for the AVX2 lanes or (`avx512`) the AVX-512 lanes
-/// (`simd::ab_lanes8`); NaN in most blocks of samples, or (`sparse`) in a
-/// few runs only, so that blocks without NaN (the steps without masks) and
-/// blocks with NaN alternate.
+/// The AVX2 lanes or (`avx512`) the AVX-512 lanes (`simd::ab_lanes8`)
+/// called directly (whatever the CPU would dispatch to) against the scalar
+/// lanes: bit-identical states and outputs for f64 and f32, rows at every
+/// element offset (heads of 0..15 samples), start samples k0 > 0, tails,
+/// NaN runs, per-lane gains, temporal and streamed stores. NaN in most
+/// blocks of samples, or (`sparse`) in a few runs only, so that blocks
+/// without NaN (the steps without masks) and blocks with NaN alternate.
 #[cfg(target_arch = "x86_64")]
 fn lanes_case<T: IoFloat>(avx512: bool, sparse: bool, off: usize, k0: usize, n: usize, nt: bool) {
     let lanes = AB_LANES;
@@ -575,13 +568,9 @@ fn lanes_case<T: IoFloat>(avx512: bool, sparse: bool, off: usize, k0: usize, n: 
     assert!(bits(&voa, &vob), "v off {off} k0 {k0} n {n} nt {nt}");
 }
 
+/// Every case of [`lanes_case`] for one kind of vector lanes.
 #[cfg(target_arch = "x86_64")]
-#[test]
-fn avx2_lanes_are_bit_identical_to_scalar_lanes() {
-    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
-        eprintln!("no AVX2+FMA on this CPU: AVX2 lanes not tested");
-        return;
-    }
+fn lanes_cases(avx512: bool) {
     for off in 0..16 {
         for (k0, n) in [
             (0, 32),
@@ -593,18 +582,27 @@ fn avx2_lanes_are_bit_identical_to_scalar_lanes() {
             (0, 1000),
         ] {
             for nt in [false, true] {
-                avx2_case::<f64>(off, k0, n, nt);
-                avx2_case::<f32>(off, k0, n, nt);
-                lanes_case::<f64>(false, true, off, k0, n, nt);
-                lanes_case::<f32>(false, true, off, k0, n, nt);
+                for sparse in [false, true] {
+                    lanes_case::<f64>(avx512, sparse, off, k0, n, nt);
+                    lanes_case::<f32>(avx512, sparse, off, k0, n, nt);
+                }
             }
         }
     }
 }
 
-/// The AVX-512 alpha-beta lanes called directly against the scalar lanes
-/// (as [`avx2_lanes_are_bit_identical_to_scalar_lanes`]), with NaN dense
-/// and sparse (blocks without NaN take the steps without masks).
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn avx2_lanes_are_bit_identical_to_scalar_lanes() {
+    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+        eprintln!("no AVX2+FMA on this CPU: AVX2 lanes not tested");
+        return;
+    }
+    lanes_cases(false);
+}
+
+/// The AVX-512 alpha-beta lanes (blocks without NaN take the steps without
+/// masks).
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn avx512_lanes_are_bit_identical_to_scalar_lanes() {
@@ -612,16 +610,7 @@ fn avx512_lanes_are_bit_identical_to_scalar_lanes() {
         eprintln!("no AVX-512F+FMA on this CPU: AVX-512 lanes not tested");
         return;
     }
-    for off in 0..16 {
-        for (k0, n) in [(0, 32), (3, 47), (0, 256), (5, 263), (2, 300), (0, 1000)] {
-            for nt in [false, true] {
-                for sparse in [false, true] {
-                    lanes_case::<f64>(true, sparse, off, k0, n, nt);
-                    lanes_case::<f32>(true, sparse, off, k0, n, nt);
-                }
-            }
-        }
-    }
+    lanes_cases(true);
 }
 
 /// The flat kernel's AVX2 instance (`flatv::ab_flat_avx2`) on back-to-back
