@@ -76,14 +76,20 @@ pub(super) struct Slot {
 }
 
 /// Regions: runs of consecutive tracks of at least `target` samples (a
-/// longer track is a region by itself), longest first.
-pub(super) fn regions(off: &[usize], target: usize) -> Vec<(usize, usize)> {
+/// longer track is a region by itself), longest first. Tracks `j` with
+/// `skip[j]` are in no region (the caller runs them).
+pub(super) fn regions(off: &[usize], target: usize, skip: Option<&[bool]>) -> Vec<(usize, usize)> {
     let n = off.len() - 1;
+    let skipped = |j: usize| skip.is_some_and(|s| s.get(j).copied().unwrap_or(false));
     let mut r = Vec::with_capacity(n / 8 + 1);
     let mut j0 = 0;
     while j0 < n {
+        if skipped(j0) {
+            j0 += 1;
+            continue;
+        }
         let mut j1 = j0 + 1;
-        while j1 < n && off[j1] - off[j0] < target {
+        while j1 < n && !skipped(j1) && off[j1] - off[j0] < target {
             j1 += 1;
         }
         r.push((j0, j1));
@@ -121,6 +127,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     vs: &mut [T],
     states: &mut [TrackState],
     nt: bool,
+    skip: Option<&[bool]>,
 ) -> Result<()> {
     let n_tracks = states.len();
     let total = off.last().copied().unwrap_or(0);
@@ -138,7 +145,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     let mis = ((xs.as_ptr() as usize) % 64 / es) as isize;
     let align_down = |p: isize| p - (p + mis).rem_euclid(sbi);
     let v_aligned = (vs.as_ptr() as usize) % 64 == (xs.as_ptr() as usize) % 64;
-    let regs = regions(off, (total / 64).clamp(512, 8192));
+    let regs = regions(off, (total / 64).clamp(512, 8192), skip);
     let mut next_region = 0;
     let c0 = konst(0);
     let mut slots = [Slot {
@@ -248,16 +255,19 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     let mut vbuf = [[zero; W]; 2];
     let mut caps: Vec<(usize, usize, usize)> = Vec::with_capacity(4 * LANES);
     let mut tmp = [[T::from_f64(0.0); 16]; LANES];
+    let zline = [T::from_f64(0.0); 16];
     loop {
         if slots.iter().all(|s| !s.busy) {
             break;
         }
         // Blocks in which no slot has anything but running samples, run
         // without bookkeeping.
+        // Idle slots (no region left for them) do not hold the others back:
+        // they compute on a line of zeros and store nothing.
         let mut n_fast = isize::MAX;
-        for s in slots.iter() {
+        for s in slots.iter().filter(|s| s.busy) {
             let lim = (s.end - 1).min(s.inj);
-            n_fast = if s.busy && s.pos >= s.skip && lim >= s.pos + sbi {
+            n_fast = if s.pos >= s.skip && lim >= s.pos + sbi {
                 n_fast.min((lim - s.pos) / sbi)
             } else {
                 0
@@ -269,14 +279,22 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         for _ in 0..n_fast {
             let mut src = [std::ptr::null::<T>(); LANES];
             for (l, s) in slots.iter().enumerate() {
-                // SAFETY (pointer): pos..pos+sb is inside the current track
-                // (fast blocks end before the track's last sample).
-                src[l] = unsafe { z.as_ptr().offset(s.pos) };
-                super::prefetch(src[l].wrapping_offset(PREFETCH_BLOCKS * sbi));
+                src[l] = if s.busy {
+                    // SAFETY (pointer): pos..pos+sb is inside the current
+                    // track (fast blocks end before the track's last sample).
+                    let p = unsafe { z.as_ptr().offset(s.pos) };
+                    super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
+                    p
+                } else {
+                    zline.as_ptr()
+                };
             }
             // SAFETY: every src[l] has sb readable samples.
             unsafe { compute(&src, halves, &mut k, None, &mut xbuf, &mut vbuf) };
             for (l, s) in slots.iter_mut().enumerate() {
+                if !s.busy {
+                    continue;
+                }
                 // SAFETY: pos..pos+sb is inside xs and vs; x stores are
                 // line-aligned (blocks follow x's lines), v streamed only if
                 // aligned too.

@@ -44,6 +44,10 @@ use crate::Result;
 const PREFETCH_BLOCKS: isize = 8;
 /// Most samples in a block (16 `f32`).
 const MAXB: usize = 16;
+
+/// One block of samples, 64-byte aligned.
+#[repr(C, align(64))]
+struct Line<T>([T; MAXB]);
 /// Most sub-blocks in a block (`W >= 4`).
 const MAXH: usize = 4;
 
@@ -89,13 +93,16 @@ pub(super) unsafe fn ab_flat_avx2<T: IoFloat>(
     vs: &mut [T],
     states: &mut [TrackState],
     nt: bool,
+    skip: Option<&[bool]>,
 ) -> Result<()> {
     // Non-temporal stores in f64 only: in f32 (16-sample blocks, a track
     // boundary in every few lines) regular stores measured 1.1-2x faster on
     // an AMD EPYC (Zen 3).
     let nt = nt && is_f64::<T>();
     // SAFETY: forwarded (AVX2 and FMA available, T is f32 or f64).
-    unsafe { kernel::<V4, T, 4, 1, 4, true>(konst, shared, start, off, z, xs, vs, states, nt) }
+    unsafe {
+        kernel::<V4, T, 4, 1, 4, true>(konst, shared, start, off, z, xs, vs, states, nt, skip)
+    }
 }
 
 /// Alpha-beta over the tracks `off[j]..off[j+1]` (AVX-512F + FMA, 8
@@ -115,9 +122,12 @@ pub(super) unsafe fn ab_flat_avx512<T: IoFloat>(
     vs: &mut [T],
     states: &mut [TrackState],
     nt: bool,
+    skip: Option<&[bool]>,
 ) -> Result<()> {
     // SAFETY: forwarded (AVX-512F and FMA available, T is f32 or f64).
-    unsafe { kernel::<V8, T, 8, 1, 8, false>(konst, shared, start, off, z, xs, vs, states, nt) }
+    unsafe {
+        kernel::<V8, T, 8, 1, 8, false>(konst, shared, start, off, z, xs, vs, states, nt, skip)
+    }
 }
 
 /// The kernel (see the module docs).
@@ -144,6 +154,7 @@ unsafe fn kernel<
     vs: &mut [T],
     states: &mut [TrackState],
     nt: bool,
+    skip: Option<&[bool]>,
 ) -> Result<()> {
     const { assert!(L == R * W && (W == 4 || W == 8) && L <= 32) };
     const { assert!(!FAST4 || (W == 4 && R == 1 && L == 4)) };
@@ -166,7 +177,7 @@ unsafe fn kernel<
     let mis = ((xs.as_ptr() as usize) % 64 / es) as isize;
     let align_down = |p: isize| p - (p + mis).rem_euclid(sbi);
     let v_aligned = (vs.as_ptr() as usize) % 64 == (xs.as_ptr() as usize) % 64;
-    let regs = regions(off, (total / 64).clamp(512, 8192));
+    let regs = regions(off, (total / 64).clamp(512, 8192), skip);
     let mut next_region = 0;
     let c0 = konst(0);
     let mut slots = [Slot {
@@ -271,16 +282,25 @@ unsafe fn kernel<
     let mut tmp = [[T::from_f64(0.0); MAXB]; L];
     // Line staging of the AVX2 fast blocks (`FAST4`).
     let mut stage = [[T::from_f64(0.0); 16]; 8];
+    // Input and outputs of idle slots in fast blocks (aligned: they may be
+    // streamed).
+    let zline = Line([T::from_f64(0.0); MAXB]);
+    let mut scratch = [
+        Line([T::from_f64(0.0); MAXB]),
+        Line([T::from_f64(0.0); MAXB]),
+    ];
     loop {
         if slots.iter().all(|s| !s.busy) {
             break;
         }
         // Blocks in which no slot has anything but running samples, run
         // without bookkeeping.
+        // Idle slots (no region left for them) do not hold the others back:
+        // they compute on a line of zeros and store into a scratch line.
         let mut n_fast = isize::MAX;
-        for s in slots.iter() {
+        for s in slots.iter().filter(|s| s.busy) {
             let lim = (s.end - 1).min(s.inj);
-            n_fast = if s.busy && s.pos >= s.skip && lim >= s.pos + sbi {
+            n_fast = if s.pos >= s.skip && lim >= s.pos + sbi {
                 n_fast.min((lim - s.pos) / sbi)
             } else {
                 0
@@ -311,14 +331,36 @@ unsafe fn kernel<
                     // blocks end before the track's last sample); x lines
                     // are aligned (blocks follow them), v streamed only if
                     // aligned too.
+                    // Idle slots: zeros in, a scratch line out.
+                    let busy = |l: usize| slots[l].busy;
                     let rows = avx2::Rows {
-                        z: std::array::from_fn(|l| z.as_ptr().offset(slots[l].pos)),
-                        x: std::array::from_fn(|l| xs.as_mut_ptr().offset(slots[l].pos)),
-                        v: std::array::from_fn(|l| vs.as_mut_ptr().offset(slots[l].pos)),
+                        z: std::array::from_fn(|l| {
+                            if busy(l) {
+                                z.as_ptr().offset(slots[l].pos)
+                            } else {
+                                zline.0.as_ptr()
+                            }
+                        }),
+                        x: std::array::from_fn(|l| {
+                            if busy(l) {
+                                xs.as_mut_ptr().offset(slots[l].pos)
+                            } else {
+                                scratch[0].0.as_mut_ptr()
+                            }
+                        }),
+                        v: std::array::from_fn(|l| {
+                            if busy(l) {
+                                vs.as_mut_ptr().offset(slots[l].pos)
+                            } else {
+                                scratch[1].0.as_mut_ptr()
+                            }
+                        }),
                         stream,
                     };
-                    for p in rows.z {
-                        super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
+                    for (l, p) in rows.z.into_iter().enumerate() {
+                        if busy(l) {
+                            super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
+                        }
                     }
                     if nt {
                         avx2::group_block::<T, true>(
@@ -344,14 +386,22 @@ unsafe fn kernel<
         for _ in 0..n_fast {
             let mut src = [std::ptr::null::<T>(); L];
             for (l, s) in slots.iter().enumerate() {
-                // SAFETY (pointer): pos..pos+sb is inside the current track
-                // (fast blocks end before the track's last sample).
-                src[l] = unsafe { z.as_ptr().offset(s.pos) };
-                super::prefetch(src[l].wrapping_offset(PREFETCH_BLOCKS * sbi));
+                src[l] = if s.busy {
+                    // SAFETY (pointer): pos..pos+sb is inside the current
+                    // track (fast blocks end before the track's last sample).
+                    let p = unsafe { z.as_ptr().offset(s.pos) };
+                    super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
+                    p
+                } else {
+                    zline.0.as_ptr()
+                };
             }
             // SAFETY: every src[l] has sb readable samples.
             unsafe { compute::<V, T, W, R, L>(&src, halves, &mut k, None, &mut xbuf, &mut vbuf) };
             for (l, s) in slots.iter_mut().enumerate() {
+                if !s.busy {
+                    continue;
+                }
                 // SAFETY: pos..pos+sb is inside xs and vs; x stores are
                 // line-aligned (blocks follow x's lines), v streamed only if
                 // aligned too.

@@ -633,6 +633,9 @@ fn flat_tracks<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize,
         (st_rest, ct_rest, x_rest, v_rest) = (b, cb, xb, vb);
         j0 = j1;
     }
+    // A long track split alone (`ab_tracks_flat`) takes both threads when
+    // its chunk is the only one.
+    let split_par = parallel && chunks.len() == 1;
     let run = |(j0, j1, st, ct, xs, vs): Chunk<'_, T>| -> Option<Result<()>> {
         let base = off[j0];
         let loc: Vec<usize> = off[j0..=j1].iter().map(|&o| o - base).collect();
@@ -668,7 +671,7 @@ fn flat_tracks<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize,
             )
         };
         let zc = &zs[base..off[j1]];
-        let r = crate::filter::ab_tracks_flat(g, &mut start, &loc, zc, xs, vs, st)?;
+        let r = crate::filter::ab_tracks_flat(g, &mut start, &loc, zc, xs, vs, st, split_par)?;
         Some(r.and_then(|()| {
             for j in 0..j1 - j0 {
                 let (a, e) = (loc[j], loc[j + 1]);

@@ -762,6 +762,7 @@ fn flat_or_rows_case<T: IoFloat>(
                 &mut vb[2 * off + 1..2 * off + 1 + total],
                 &mut sb,
                 nt,
+                None,
             )
         }
         .unwrap();
@@ -808,7 +809,9 @@ fn flat_avx2_kernel_is_bit_identical_to_tracks_alone() {
         .map(|i| [0, 1, 2, 3, 5, 8, 9, 16, 17, 40, 100][(i * 7) % 11])
         .collect();
     mixed.extend([1000, 0, 2, 257]);
-    let cases: [Vec<usize>; 4] = [mixed, vec![100; 300], vec![3; 500], vec![4096]];
+    // Fewer long tracks than slots: most blocks run with idle slots.
+    let few = vec![3000, 17, 2000, 5000, 1];
+    let cases: [Vec<usize>; 5] = [mixed, vec![100; 300], vec![3; 500], vec![4096], few];
     for lens in cases.iter() {
         for off in [0, 1, 3, 7, 13] {
             for shared in [true, false] {
