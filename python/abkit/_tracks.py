@@ -141,8 +141,13 @@ def check_no_inf_after(f: "FixedGainFilter", z3: np.ndarray, off: np.ndarray, pa
     otherwise. Also the overflow error of the row kernels
     (``check_tracks_finite``) unless ``f.allow_unstable``."""
     ph = packed[:, _NMAX]
+    # s: position (phase 1) or the sum of the state (running); column by
+    # column (a sum over the short trailing axis is slower).
     with np.errstate(over="ignore", invalid="ignore"):
-        s = np.where(ph == 1, packed[:, 0], packed[:, : f.n].sum(axis=1))
+        s = packed[:, 0].copy()
+        run = ph != 1
+        for i in range(1, f.n):
+            s += np.where(run, packed[:, i], 0.0)
     sus = (ph > 0) & ~np.isfinite(s)
     if not sus.any():
         return
