@@ -18,8 +18,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|s| s.parse::<usize>())
         .collect::<Result<Vec<_>, _>>()?;
     let &[lo, hi, total, reps, ..] = &a[..] else {
-        return Err("usage: ragbench LO HI TOTAL REPS".into());
+        return Err("usage: ragbench LO HI TOTAL REPS [1: with timestamps]".into());
     };
+    let timed = a.get(4) == Some(&1);
     let mut s = 12345u64;
     let mut r = || {
         s = s
@@ -61,6 +62,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut counts = vec![[0i64; 2]; n_tracks];
     let mut states = vec![0.0f64; 2 * n];
     let zs = Samples::flat(&z, 1)?;
+    // Timestamps (optional): steps uniform in 0.05..0.15.
+    let mut acc = 0.0;
+    let t: Vec<f64> = (0..n)
+        .map(|_| {
+            acc += 0.05 + 0.1 * r();
+            acc
+        })
+        .collect();
+    let ts = Samples::flat(&t, 1)?;
     let mut best = f64::INFINITY;
     for _ in 0..reps {
         st.iter_mut().for_each(|s| *s = TrackState::default());
@@ -70,7 +80,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &o,
             &off,
             &zs,
-            None,
+            timed.then_some(&ts),
             &mut st,
             &mut states,
             None,

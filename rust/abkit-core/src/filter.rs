@@ -664,6 +664,13 @@ impl SplitPlan {
     }
 }
 
+/// Segment length of a split alpha-beta track of `len` samples
+/// ([`SplitPlan`]: at least [`SPLIT_MIN_SAMPLES`] and a fast-decaying loop),
+/// `None` when it is not split.
+pub(crate) fn split_seg_len(alpha: f64, beta: f64, len: usize) -> Option<usize> {
+    SplitPlan::new(alpha, beta, len).map(|p| p.seg_len)
+}
+
 fn jury_ok(alpha: f64, beta: f64) -> bool {
     alpha > 0.0 && beta > 0.0 && 2.0 * alpha + beta < 4.0
 }

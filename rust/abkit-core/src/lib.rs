@@ -47,6 +47,8 @@ pub mod kalman;
 pub mod ragged;
 #[cfg(target_arch = "x86_64")]
 pub mod ragged_simd;
+#[cfg(target_arch = "x86_64")]
+mod ragged_split;
 pub mod riccati;
 pub mod singer;
 pub mod singer_closed;

@@ -184,6 +184,11 @@ pub trait PostTrack<T, const N: usize>: Sync {
         t: Option<&dyn Fn(usize) -> f64>,
         max_gap: Option<f64>,
     ) -> Result<()>;
+
+    /// Whether [`PostTrack::post`] does nothing ([`NoPost`]).
+    fn is_none(&self) -> bool {
+        false
+    }
 }
 
 /// No post-processing.
@@ -191,6 +196,10 @@ pub trait PostTrack<T, const N: usize>: Sync {
 pub struct NoPost;
 
 impl<T, const N: usize> PostTrack<T, N> for NoPost {
+    fn is_none(&self) -> bool {
+        true
+    }
+
     fn post(
         &self,
         _: usize,
@@ -493,8 +502,43 @@ pub fn filter_tracks<
         return Ok(());
     }
     #[cfg(target_arch = "x86_64")]
+    if let (Some(tt), None) = (t, &resid) {
+        if let Some(r) = crate::ragged_split::split_timed(
+            filt, opts, &off, z, tt, states, out, counts, parallel, post,
+        ) {
+            return r;
+        }
+    }
+    run_tracks(
+        filt, opts, &off, z, t, states, out, resid, counts, parallel, post,
+    )
+}
+
+/// [`filter_tracks`] after its checks (`off`: the validated offsets).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn run_tracks<
+    T: IoFloat,
+    L: GainLaw<N, M>,
+    P: PostTrack<T, N>,
+    const N: usize,
+    const M: usize,
+>(
+    filt: &TrackFilter<'_, L, N, M>,
+    opts: &Options,
+    off: &[usize],
+    z: &Samples<'_, T>,
+    t: Option<&Samples<'_, f64>>,
+    states: &mut [TrackState],
+    out: &mut [T],
+    resid: Option<&mut [T]>,
+    counts: &mut [Counts],
+    parallel: bool,
+    post: &P,
+) -> Result<()> {
+    let n_total = z.len();
+    #[cfg(target_arch = "x86_64")]
     if t.is_none() && resid.is_none() && N == 2 && M == 1 {
-        if let Some(r) = flat_tracks(filt, opts, &off, z, states, out, counts, parallel, post) {
+        if let Some(r) = flat_tracks(filt, opts, off, z, states, out, counts, parallel, post) {
             return r;
         }
     }
@@ -511,9 +555,9 @@ pub fn filter_tracks<
         let w = crate::ragged_simd::width();
         #[cfg(not(target_arch = "x86_64"))]
         let w = 1;
-        plan_blocks(&off, VECTOR_BLOCK_SAMPLES, 2 * w)
+        plan_blocks(off, VECTOR_BLOCK_SAMPLES, 2 * w)
     } else {
-        plan_blocks(&off, BLOCK_SAMPLES, 1)
+        plan_blocks(off, BLOCK_SAMPLES, 1)
     };
     let mut rows: Vec<&mut [T]> = if n_total == 0 {
         (0..N).map(|_| -> &mut [T] { &mut [] }).collect()
@@ -553,7 +597,7 @@ pub fn filter_tracks<
             counts: c,
         });
     }
-    let run = |b: &mut Block<'_, T, N>| run_block_dispatch(filt, opts, &off, z, t, b, post);
+    let run = |b: &mut Block<'_, T, N>| run_block_dispatch(filt, opts, off, z, t, b, post);
     let results: Vec<Result<()>> = if parallel && blocks.len() > 1 {
         blocks.par_iter_mut().map(run).collect()
     } else {
@@ -1213,7 +1257,15 @@ fn run_block_lanes<
                 resid: resid_j,
             };
             let mut law = filt.laws[if filt.laws.len() == 1 { 0 } else { i }].clone();
-            let kk = general!(j, 0, &mut law, &mut out);
+            // A running track (continued with state=, or a segment of a
+            // split track) goes to the lanes at once: the general code
+            // would run all of it in its scalar loop. The lanes hand any
+            // sample that is not a plain step back to the general code.
+            let kk = if states[j].phase >= 2.0 && n > 0 {
+                0
+            } else {
+                general!(j, 0, &mut law, &mut out)
+            };
             if kk < n {
                 let st = &states[j];
                 lanes.push(Lane {
