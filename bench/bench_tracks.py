@@ -11,6 +11,8 @@ Ratios measured in one run, on the same machine, same total samples:
   Target: irregular >= 0.5 of fixed-T. The same ratio for ragged tracks
   with timestamps (lengths 10..10,000), both gain schedules, against the
   rectangular fixed-T kernel on the same number of samples.
+* a few long tracks (one, three) of 10^7 samples, with and without t, against
+  one track with fixed T (the long tracks are split, docs/filtering.md).
 * ragged vs rectangular: 10^7 samples as tracks of mixed lengths 10..10,000
   (log-uniform) in one flat array with ``offsets`` vs the rectangular
   fixed-T kernel on the same number of samples. Target: >= 0.8.
@@ -77,6 +79,9 @@ def main() -> None:
     off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
     zr = np.cumsum(rng.normal(0, 1, total)) + rng.normal(0, 1, total)
     tr = np.cumsum(rng.exponential(0.1, total))  # increasing overall, so per track too
+    # one track, and three (5, 3 and 2 tenths) of all samples
+    off1 = np.array([0, total], dtype=np.int64)
+    off3 = np.array([0, total // 2, total // 2 + 3 * total // 10, total], dtype=np.int64)
     # rectangular reference with the same number of samples
     rect_tracks = 1000 // scale
     zq = zr.reshape(rect_tracks, -1)
@@ -95,6 +100,13 @@ def main() -> None:
         "rect_t": lambda: design.run(zq, t=tq, out=out_q, threads=th),
         "rag_t": lambda: design.run(zr, t=tr, offsets=off, out=out_r, threads=th),
         "rag_t_fixed": lambda: fixed.run(zr, t=tr, offsets=off, out=out_r, threads=th),
+        # a few long tracks (split into segments, docs/filtering.md)
+        "long1": lambda: design.run(zr, out=out_r, threads=th),
+        "long1_rag": lambda: design.run(zr, offsets=off1, out=out_r, threads=th),
+        "long3_rag": lambda: design.run(zr, offsets=off3, out=out_r, threads=th),
+        "long1_t": lambda: design.run(zr, t=tr, out=out_r, threads=th),
+        "long1_t_fixed": lambda: fixed.run(zr, t=tr, out=out_r, threads=th),
+        "long3_t": lambda: design.run(zr, t=tr, offsets=off3, out=out_r, threads=th),
     }
     # Round robin: every case once per round, best per case (load drifts
     # affect all cases alike).
@@ -134,6 +146,19 @@ def main() -> None:
     t_rag_tf = best_t["rag_t_fixed"]
     print(f"| ragged with t, fixed-gain schedule | {total / t_rag_tf / 1e6:.0f} | {t_rect / t_rag_tf:.2f} (vs rectangular fixed-T) |")
 
+    print()
+    t_long = best_t["long1"]
+    print(f"| A few long tracks ({total:,} samples) | Msamples/s | vs one track, fixed-T |")
+    print("|---|---:|---:|")
+    for name, k in (
+        ("one track, fixed-T (run(z), split)", "long1"),
+        ("one track, offsets (ragged, no t)", "long1_rag"),
+        ("three tracks, offsets (no t)", "long3_rag"),
+        ("one track with t, design schedule", "long1_t"),
+        ("one track with t, fixed-gain schedule", "long1_t_fixed"),
+        ("three tracks with t, design schedule", "long3_t"),
+    ):
+        print(f"| {name} | {total / best_t[k] / 1e6:.0f} | {t_long / best_t[k]:.2f} |")
 
 if __name__ == "__main__":
     main()

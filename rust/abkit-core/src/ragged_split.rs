@@ -42,7 +42,10 @@ use crate::{Error, Result};
 /// `None` when no track is split (the caller runs them as usual). A track
 /// is split when it holds at least `1 / width` of all samples (the lanes
 /// would idle on it) and [`split_seg_len`] accepts its gains at the nominal
-/// step.
+/// step. (Splitting every track of at least 65,536 samples measured faster
+/// for 10 x 10^6 samples, 2.6 -> 2.2 ns per sample, but slower for 50 x
+/// 200,000, 2.2 -> 2.5, and 100 x 100,000, 2.4 -> 3.2: the lanes are full
+/// there anyway and the guesses and corrections cost.)
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn split_timed<
     T: IoFloat,
