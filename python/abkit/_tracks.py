@@ -146,8 +146,8 @@ def check_no_inf_after(f: "FixedGainFilter", z3: np.ndarray, off: np.ndarray, pa
     with np.errstate(over="ignore", invalid="ignore"):
         s = packed[:, 0].copy()
         run = ph != 1
-        for i in range(1, f.n):
-            s += np.where(run, packed[:, i], 0.0)
+        for c in range(1, f.n):
+            s += np.where(run, packed[:, c], 0.0)
     sus = (ph > 0) & ~np.isfinite(s)
     if not sus.any():
         return

@@ -40,12 +40,13 @@ use crate::{Error, Result};
 
 /// Filter the tracks of `off` (validated) with the long ones split, or
 /// `None` when no track is split (the caller runs them as usual). A track
-/// is split when it holds at least `1 / width` of all samples (the lanes
-/// would idle on it) and [`split_seg_len`] accepts its gains at the nominal
-/// step. (Splitting every track of at least 65,536 samples measured faster
-/// for 10 x 10^6 samples, 2.6 -> 2.2 ns per sample, but slower for 50 x
-/// 200,000, 2.2 -> 2.5, and 100 x 100,000, 2.4 -> 3.2: the lanes are full
-/// there anyway and the guesses and corrections cost.)
+/// is split when it holds at least `1 / (4 width)` of all samples (the
+/// lanes would idle on it at the end of a block) and [`split_seg_len`]
+/// accepts its gains at the nominal step. (Splitting every track of at
+/// least 65,536 samples measured faster for 10 x 10^6 samples, 2.6 -> 2.2
+/// ns per sample, but slower for 50 x 200,000, 2.2 -> 2.5, and 100 x
+/// 100,000, 2.4 -> 3.2: the lanes are full there anyway and the guesses
+/// and corrections cost.)
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn split_timed<
     T: IoFloat,
@@ -75,7 +76,7 @@ pub(crate) fn split_timed<
     let seg_len: Vec<Option<usize>> = (0..n_tracks)
         .map(|i| {
             let len = off[i + 1] - off[i];
-            if len.saturating_mul(w) < n_total {
+            if len.saturating_mul(4 * w) < n_total {
                 return None;
             }
             let l = law(i);
