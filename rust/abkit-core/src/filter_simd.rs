@@ -147,6 +147,54 @@ pub(super) fn clean_steps8(
     }
 }
 
+/// Eight alpha-beta vector steps on transposed samples `zt` (NaN = missed:
+/// the slot coasts), constants `[t, alpha, 1 - alpha, g2]` per slot: the
+/// scalar `ab_step` with FMA in every slot. The estimates after each step go
+/// to `xo`, `vo`.
+#[inline]
+#[target_feature(enable = "avx512f,fma")]
+fn masked_steps8(
+    zt: &[__m512d; W],
+    [ct, calpha, coma, cg2]: [__m512d; 4],
+    xv: &mut __m512d,
+    vv: &mut __m512d,
+    xo: &mut [__m512d; W],
+    vo: &mut [__m512d; W],
+) {
+    let one = _mm512_set1_pd(1.0);
+    for j in 0..W {
+        let zj = zt[j];
+        let xp = _mm512_fmadd_pd(ct, *vv, *xv);
+        let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
+        let zz = _mm512_maskz_mov_pd(valid, zj);
+        let c1 = _mm512_mask_blend_pd(valid, one, coma);
+        let g = _mm512_maskz_mov_pd(valid, cg2);
+        let w = _mm512_fmadd_pd(g, zz, *vv);
+        *xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(calpha, zz));
+        *vv = _mm512_fnmadd_pd(g, xp, w);
+        xo[j] = *xv;
+        vo[j] = *vv;
+    }
+}
+
+/// Store the 16 `f32` of `v` at `p`, streamed past the caches if `nt`.
+///
+/// # Safety
+/// The 64 bytes at `p` are writable and, if `nt`, aligned to 64 bytes;
+/// AVX-512F is available.
+#[inline]
+#[target_feature(enable = "avx512f")]
+unsafe fn store_ps(p: *mut f32, v: __m512, nt: bool) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if nt {
+            _mm512_stream_ps(p, v)
+        } else {
+            _mm512_storeu_ps(p, v)
+        }
+    }
+}
+
 /// In-place transpose of the 8 x 8 matrix whose rows are `r`.
 #[inline]
 #[target_feature(enable = "avx512f")]
@@ -180,6 +228,120 @@ pub(super) fn transpose8(r: &mut [__m512d; 8]) {
     r[6] = _mm512_shuffle_f64x2::<0b11_10_11_10>(u2, u6);
     r[3] = _mm512_shuffle_f64x2::<0b01_00_01_00>(u3, u7);
     r[7] = _mm512_shuffle_f64x2::<0b11_10_11_10>(u3, u7);
+}
+
+/// Eight rows of 16 `f32` samples transposed in `f32`: on return `r[j]`
+/// (`j < 4`) holds the eight rows' samples `j` (low 256 bits) and `4 + j`
+/// (high), `r[4 + j]` samples `8 + j` and `12 + j` (lane `l` of each half
+/// from row `l`). 24 shuffles for 128 values; the transposes of widened
+/// `f64` vectors need 48 (docs/benchmarks.md, session 15).
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn transpose8x16(r: &mut [__m512; 8]) {
+    let pd = _mm512_castps_pd;
+    // Stage 1: pairs of rows interleaved within 128-bit lanes.
+    let a01 = pd(_mm512_unpacklo_ps(r[0], r[1]));
+    let b01 = pd(_mm512_unpackhi_ps(r[0], r[1]));
+    let a23 = pd(_mm512_unpacklo_ps(r[2], r[3]));
+    let b23 = pd(_mm512_unpackhi_ps(r[2], r[3]));
+    let a45 = pd(_mm512_unpacklo_ps(r[4], r[5]));
+    let b45 = pd(_mm512_unpackhi_ps(r[4], r[5]));
+    let a67 = pd(_mm512_unpacklo_ps(r[6], r[7]));
+    let b67 = pd(_mm512_unpackhi_ps(r[6], r[7]));
+    // Stage 2: 128-bit lane q of t[j] = rows 0-3 at sample 4 q + j (u: rows 4-7).
+    let t = [
+        _mm512_unpacklo_pd(a01, a23),
+        _mm512_unpackhi_pd(a01, a23),
+        _mm512_unpacklo_pd(b01, b23),
+        _mm512_unpackhi_pd(b01, b23),
+    ];
+    let u = [
+        _mm512_unpacklo_pd(a45, a67),
+        _mm512_unpackhi_pd(a45, a67),
+        _mm512_unpacklo_pd(b45, b67),
+        _mm512_unpackhi_pd(b45, b67),
+    ];
+    // Stage 3: [t.0, u.0, t.1, u.1] and [t.2, u.2, t.3, u.3].
+    let ip = _mm512_set_epi64(11, 10, 3, 2, 9, 8, 1, 0);
+    let iq = _mm512_set_epi64(15, 14, 7, 6, 13, 12, 5, 4);
+    for j in 0..4 {
+        r[j] = _mm512_castpd_ps(_mm512_permutex2var_pd(t[j], ip, u[j]));
+        r[4 + j] = _mm512_castpd_ps(_mm512_permutex2var_pd(t[j], iq, u[j]));
+    }
+}
+
+/// The inverse of [`transpose8x16`]: from the per-sample layout back to
+/// eight rows of 16 samples.
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn untranspose8x16(r: &mut [__m512; 8]) {
+    let pd = _mm512_castps_pd;
+    let it = _mm512_set_epi64(13, 12, 9, 8, 5, 4, 1, 0);
+    let iu = _mm512_set_epi64(15, 14, 11, 10, 7, 6, 3, 2);
+    let t: [__m512d; 4] =
+        std::array::from_fn(|j| _mm512_permutex2var_pd(pd(r[j]), it, pd(r[4 + j])));
+    let u: [__m512d; 4] =
+        std::array::from_fn(|j| _mm512_permutex2var_pd(pd(r[j]), iu, pd(r[4 + j])));
+    let ps = _mm512_castpd_ps;
+    let a01 = ps(_mm512_unpacklo_pd(t[0], t[1]));
+    let a23 = ps(_mm512_unpackhi_pd(t[0], t[1]));
+    let b01 = ps(_mm512_unpacklo_pd(t[2], t[3]));
+    let b23 = ps(_mm512_unpackhi_pd(t[2], t[3]));
+    let a45 = ps(_mm512_unpacklo_pd(u[0], u[1]));
+    let a67 = ps(_mm512_unpackhi_pd(u[0], u[1]));
+    let b45 = ps(_mm512_unpacklo_pd(u[2], u[3]));
+    let b67 = ps(_mm512_unpackhi_pd(u[2], u[3]));
+    r[0] = _mm512_shuffle_ps::<0b10_00_10_00>(a01, b01);
+    r[1] = _mm512_shuffle_ps::<0b11_01_11_01>(a01, b01);
+    r[2] = _mm512_shuffle_ps::<0b10_00_10_00>(a23, b23);
+    r[3] = _mm512_shuffle_ps::<0b11_01_11_01>(a23, b23);
+    r[4] = _mm512_shuffle_ps::<0b10_00_10_00>(a45, b45);
+    r[5] = _mm512_shuffle_ps::<0b11_01_11_01>(a45, b45);
+    r[6] = _mm512_shuffle_ps::<0b10_00_10_00>(a67, b67);
+    r[7] = _mm512_shuffle_ps::<0b11_01_11_01>(a67, b67);
+}
+
+/// Sample `s` (0..16) of the eight rows transposed by [`transpose8x16`],
+/// widened to `f64` (exact).
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn widen_step(r: &[__m512; 8], s: usize) -> __m512d {
+    let v = r[(s / 8) * 4 + s % 4];
+    let half = if (s / 4).is_multiple_of(2) {
+        _mm512_castps512_ps256(v)
+    } else {
+        _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(_mm512_castps_pd(v)))
+    };
+    _mm512_cvtps_pd(half)
+}
+
+/// The 16 per-sample `f64` vectors `o[s / 8][s % 8]` narrowed to `f32`
+/// (round to nearest, as the scalar conversion) in the layout of
+/// [`transpose8x16`].
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn narrow_steps(o: &[[__m512d; W]; 2]) -> [__m512; 8] {
+    let pair = |lo: __m512d, hi: __m512d| {
+        let lo = _mm256_castps_pd(_mm512_cvtpd_ps(lo));
+        let hi = _mm256_castps_pd(_mm512_cvtpd_ps(hi));
+        _mm512_castpd_ps(_mm512_insertf64x4::<1>(_mm512_castpd256_pd512(lo), hi))
+    };
+    std::array::from_fn(|i| {
+        let (h, j) = (i / 4, i % 4);
+        pair(o[h][j], o[h][4 + j])
+    })
+}
+
+/// Whether none of the 128 `f32` values of `rows` is NaN (as [`no_nan8`]).
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn no_nan16(rows: &[__m512; W]) -> bool {
+    let s01 = _mm512_add_ps(rows[0], rows[1]);
+    let s23 = _mm512_add_ps(rows[2], rows[3]);
+    let s45 = _mm512_add_ps(rows[4], rows[5]);
+    let s67 = _mm512_add_ps(rows[6], rows[7]);
+    let sum = _mm512_add_ps(_mm512_add_ps(s01, s23), _mm512_add_ps(s45, s67));
+    _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(sum, sum) == 0
 }
 
 /// The eight lanes over samples `k0..n` (see the module docs): the same
@@ -247,14 +409,65 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     let calpha = lane(|c| c.alpha);
     let coma = lane(|c| c.one_minus_alpha);
     let cg2 = lane(|c| c.g2);
-    let one = _mm512_set1_pd(1.0);
     // SAFETY (loads): x, v are plain arrays of 8 f64.
     let mut xv = unsafe { _mm512_loadu_pd(x.as_ptr()) };
     let mut vv = unsafe { _mm512_loadu_pd(v.as_ptr()) };
     let zero = _mm512_setzero_pd();
+    let cs = [ct, calpha, coma, cg2];
     for b in 0..blocks {
         let mut xbuf = [[zero; W]; 2];
         let mut vbuf = [[zero; W]; 2];
+        if is_f32::<T>() {
+            // f32: one line of 16 samples per lane, transposed as f32.
+            let mut rows = [_mm512_setzero_ps(); W];
+            for l in 0..AB_LANES {
+                let at = k[l] + b * sb;
+                if let Some((dz, dout)) = ahead {
+                    for h in [0, W] {
+                        prefetch(z[l].as_ptr().wrapping_add(dz + at + h));
+                        if !nt {
+                            prefetch(xs[l].as_ptr().wrapping_add(dout + at + h));
+                            prefetch(vs[l].as_ptr().wrapping_add(dout + at + h));
+                        }
+                    }
+                }
+                prefetch(z[l].as_ptr().wrapping_add(at + Z_AHEAD));
+                // SAFETY: T is f32 and at + sb <= k[l] + blocks * sb <= n = z[l].len().
+                rows[l] = unsafe { _mm512_loadu_ps(z[l].as_ptr().add(at) as *const f32) };
+            }
+            let clean = no_nan16(&rows);
+            transpose8x16(&mut rows);
+            for h in 0..2 {
+                let zt: [__m512d; W] = std::array::from_fn(|j| widen_step(&rows, h * W + j));
+                let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
+                if clean {
+                    clean_steps8(&zt, cs, &mut xv, &mut vv, xo, vo);
+                } else {
+                    masked_steps8(&zt, cs, &mut xv, &mut vv, xo, vo);
+                }
+            }
+            let mut xl = narrow_steps(&xbuf);
+            let mut vl = narrow_steps(&vbuf);
+            untranspose8x16(&mut xl);
+            untranspose8x16(&mut vl);
+            for l in 0..AB_LANES {
+                let at = k[l] + b * sb;
+                // SAFETY: as for the f64 stores below (T is f32).
+                unsafe {
+                    store_ps(
+                        xs[l].as_mut_ptr().add(at) as *mut f32,
+                        xl[l],
+                        nt && x_aligned[l],
+                    );
+                    store_ps(
+                        vs[l].as_mut_ptr().add(at) as *mut f32,
+                        vl[l],
+                        nt && v_aligned[l],
+                    );
+                }
+            }
+            continue;
+        }
         for h in 0..sb / W {
             let mut rows = [zero; W];
             for l in 0..AB_LANES {
@@ -276,21 +489,9 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
             transpose8(&mut rows);
             let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
             if clean {
-                clean_steps8(&rows, [ct, calpha, coma, cg2], &mut xv, &mut vv, xo, vo);
+                clean_steps8(&rows, cs, &mut xv, &mut vv, xo, vo);
             } else {
-                for j in 0..W {
-                    let zj = rows[j];
-                    let xp = _mm512_fmadd_pd(ct, vv, xv);
-                    let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
-                    let zz = _mm512_maskz_mov_pd(valid, zj);
-                    let c1 = _mm512_mask_blend_pd(valid, one, coma);
-                    let g = _mm512_maskz_mov_pd(valid, cg2);
-                    let w = _mm512_fmadd_pd(g, zz, vv);
-                    xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(calpha, zz));
-                    vv = _mm512_fnmadd_pd(g, xp, w);
-                    xo[j] = xv;
-                    vo[j] = vv;
-                }
+                masked_steps8(&rows, cs, &mut xv, &mut vv, xo, vo);
             }
             transpose8(xo);
             transpose8(vo);
@@ -766,10 +967,16 @@ pub(super) const GEN_LANES8: usize = 8;
 /// ns per sample, 4 lanes -> 8 lanes): 1,000 x 10,000 f64 4.5 -> 3.2-3.4,
 /// 3,000 x 1,000 2.9-3.1 -> 2.6-2.8, 50,000 x 200 5.0 -> 3.8, 100,000 x 100
 /// 6.6 -> 5.4; but 100,000 x 64 6.0 -> 9.0, 2,000 x 100 (in the caches) 2.3
-/// -> 3.7; float32 was faster on some shapes and slower on others (1,000 x
-/// 10,000 1.9 -> 2.1, 20,000 x 500 3.9 -> 2.6), so it stays in the 4-lane
-/// kernel (docs/benchmarks.md, session 13).
+/// -> 3.7 (docs/benchmarks.md, session 13). Float32: [`GEN8_MIN_SAMPLES_F32`].
 pub(super) const GEN8_MIN_SAMPLES: usize = 512;
+
+/// Float32 rows at least this long (streamed or not) run in the AVX-512
+/// general lanes, which transpose float32 as float32 ([`transpose8x16`]).
+/// On the AVX-512 Xeon (3-state, ns per sample, 4 lanes -> 8 lanes):
+/// 10 x 100,000 3.7 -> 2.0, 1,000 x 10,000 2.9 -> 2.2, 40,000 x 250 4.2 ->
+/// 3.4-3.6, 2,000 x 300 2.95 -> 2.7; 100,000 x 100 5.3-6.0 either way
+/// (docs/benchmarks.md, session 15).
+pub(super) const GEN8_MIN_SAMPLES_F32: usize = 200;
 
 /// [`GEN8_MIN_SAMPLES`] for streamed outputs.
 pub(super) const GEN8_MIN_SAMPLES_STREAMED: usize = 100;
@@ -777,24 +984,127 @@ pub(super) const GEN8_MIN_SAMPLES_STREAMED: usize = 100;
 /// Whether the AVX-512 general lanes ([`gen_lanes8`]) run for rows of `n`
 /// samples of `T` (outputs streamed if `nt`): where [`available`], for `f64`
 /// rows of at least [`GEN8_MIN_SAMPLES`] ([`GEN8_MIN_SAMPLES_STREAMED`] if
-/// `nt`). The environment variable `ABKIT_GEN_AVX512` (read once)
-/// overrides: `0` never, anything else always (f32 and short rows too).
+/// `nt`) and `f32` rows of at least [`GEN8_MIN_SAMPLES_F32`]. The
+/// environment variable `ABKIT_GEN_AVX512` (read once) overrides: `0` never,
+/// anything else always (short rows too).
 /// Results are the same bits either way (tests/test_filters_lanes.py,
 /// `test_general_lanes8_equal_scalar_bitwise`).
 pub(super) fn gen8_enabled<T: 'static>(n: usize, nt: bool) -> bool {
     use std::sync::OnceLock;
     static MODE: OnceLock<Option<bool>> = OnceLock::new();
     let mode = *MODE.get_or_init(|| std::env::var_os("ABKIT_GEN_AVX512").map(|v| v != "0"));
-    let min = if nt {
+    let min = if is_f32::<T>() {
+        GEN8_MIN_SAMPLES_F32
+    } else if nt {
         GEN8_MIN_SAMPLES_STREAMED
     } else {
         GEN8_MIN_SAMPLES
     };
-    available() && mode.unwrap_or(is_f64::<T>() && n >= min)
+    available() && mode.unwrap_or((is_f64::<T>() || is_f32::<T>()) && n >= min)
+}
+
+/// The general gains of eight lanes in vectors (slot `l`: lane `l`'s).
+struct GenMats8<const N: usize, const M: usize> {
+    a: [[__m512d; N]; N],
+    phi: [[__m512d; N]; N],
+    k: [[__m512d; M]; N],
+}
+
+/// One vector step of eight general lanes on their measurement vectors `zs`
+/// (the AVX-512 [`gen_vstep`]): `A x + K z` where every component of a
+/// lane's `z` is valid, else the coast `Phi x` (computed only if some lane
+/// needs it); per slot exactly the scalar `gen_step`.
+#[inline]
+#[target_feature(enable = "avx512f,fma")]
+fn gen_vstep8<const N: usize, const M: usize>(
+    g: &GenMats8<N, M>,
+    x: &[__m512d; N],
+    zs: &[__m512d; M],
+) -> [__m512d; N] {
+    let mut valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zs[0], zs[0]);
+    for zc in zs.iter().skip(1) {
+        valid &= _mm512_cmp_pd_mask::<_CMP_ORD_Q>(*zc, *zc);
+    }
+    std::array::from_fn(|i| {
+        let mut u = _mm512_mul_pd(g.k[i][0], zs[0]);
+        for j in 1..M {
+            u = _mm512_fmadd_pd(g.k[i][j], zs[j], u);
+        }
+        for j in 0..N {
+            u = _mm512_fmadd_pd(g.a[i][j], x[j], u);
+        }
+        if valid == 0xff {
+            return u;
+        }
+        let mut p = _mm512_setzero_pd();
+        for j in 0..N {
+            p = _mm512_fmadd_pd(g.phi[i][j], x[j], p);
+        }
+        _mm512_mask_blend_pd(valid, p, u)
+    })
+}
+
+/// Vector steps of the eight general lanes, lane `l` over samples
+/// `from[l]..to[l]` (the AVX-512 [`gen_masked_steps`]): per step the running
+/// lanes' `z` gathered into vectors (a done lane's slot gets 0), one
+/// [`gen_vstep8`], the new state kept where a lane runs, and each running
+/// lane's outputs stored: the same bits as the scalar `gen_step` per lane.
+///
+/// # Safety
+/// AVX-512F and FMA; for every lane `to[l] * M` values are readable at
+/// `rows[l]` and `out[l][i]` has `to[l]` writable elements.
+#[inline]
+#[target_feature(enable = "avx512f,fma")]
+unsafe fn gen_masked_steps8<T: IoFloat, const N: usize, const M: usize>(
+    g: &GenMats8<N, M>,
+    x: &mut [__m512d; N],
+    rows: &[*const T; GEN_LANES8],
+    out: &[[*mut T; N]; GEN_LANES8],
+    from: [usize; GEN_LANES8],
+    to: [usize; GEN_LANES8],
+) {
+    const L: usize = GEN_LANES8;
+    let most = (0..L)
+        .map(|l| to[l].saturating_sub(from[l]))
+        .max()
+        .unwrap_or(0);
+    // SAFETY: every access below is at a running sample k < to[l] of lane
+    // l (the caller's bounds); the rest is register and stack work.
+    unsafe {
+        for s in 0..most {
+            let mut zl = [[0.0f64; L]; M];
+            let mut run: __mmask8 = 0;
+            for l in 0..L {
+                let k = from[l] + s;
+                if k < to[l] {
+                    for (j, zj) in zl.iter_mut().enumerate() {
+                        zj[l] = (*rows[l].add(k * M + j)).to_f64();
+                    }
+                    run |= 1 << l;
+                }
+            }
+            let zs: [__m512d; M] = std::array::from_fn(|j| _mm512_loadu_pd(zl[j].as_ptr()));
+            let xn = gen_vstep8(g, x, &zs);
+            let mut t = [[0.0f64; L]; N];
+            for i in 0..N {
+                x[i] = _mm512_mask_blend_pd(run, x[i], xn[i]);
+                _mm512_storeu_pd(t[i].as_mut_ptr(), xn[i]);
+            }
+            for l in 0..L {
+                let k = from[l] + s;
+                if k < to[l] {
+                    for i in 0..N {
+                        *out[l][i].add(k) = T::from_f64(t[i][l]);
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// The eight general lanes over samples `k0..n` (AVX-512; the contract of
-/// [`gen_lanes4`] with eight tracks): each lane first steps (scalar) to a
+/// [`gen_lanes4`] with eight tracks): each lane first steps (masked vector
+/// steps, [`gen_masked_steps8`]) to a
 /// sample where its first output row is aligned to a cache line; then blocks
 /// of one cache line of output per lane and component (8 `f64` or 16 `f32`
 /// samples): per 8 samples each lane loads `8 M` consecutive values, 8 x 8
@@ -843,7 +1153,6 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
         let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
         k[l] = k0 + ((64 - addr % 64) % 64) / size;
     }
-    gen_scalar_steps8(cs, xs, rows, group, &[k0; L], &k);
     let blocks = k
         .iter()
         .map(|&kl| n.saturating_sub(kl) / sb)
@@ -866,11 +1175,11 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
             f(cs[0]),
         )
     };
-    let a: [[__m512d; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.a[i][j])));
-    let phi: [[__m512d; N]; N] =
-        std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.phi[i][j])));
-    let kk: [[__m512d; M]; N] =
-        std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.k[i][j])));
+    let g = GenMats8::<N, M> {
+        a: std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.a[i][j]))),
+        phi: std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.phi[i][j]))),
+        k: std::array::from_fn(|i| std::array::from_fn(|j| v8(&|c| c.k[i][j]))),
+    };
     let mut x: [__m512d; N] = std::array::from_fn(|i| {
         _mm512_set_pd(
             xs[7][i], xs[6][i], xs[5][i], xs[4][i], xs[3][i], xs[2][i], xs[1][i], xs[0][i],
@@ -880,11 +1189,63 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
     let rp: [*const T; L] = std::array::from_fn(|l| rows[l].as_ptr());
     let op: [[*mut T; N]; L] =
         std::array::from_fn(|l| std::array::from_fn(|i| group[l].2.states[i].as_mut_ptr()));
+    // Heads: each lane to its line-aligned sample k[l], in masked vector steps.
+    // SAFETY: k[l] <= k0 + sb <= n; rows and outputs hold n samples (`ok`).
+    unsafe { gen_masked_steps8(&g, &mut x, &rp, &op, [k0; L], k) };
     // outv[i][h][s]: component i after sample h W + s of the block (made
     // once, as in `gen_lanes4`: every entry stored is written in the block,
     // and the unused half of an `f64` block stays zero).
     let mut outv = [[[zero; W]; 2]; N];
     for b in 0..blocks {
+        if is_f32::<T>() {
+            // f32: 16 samples per lane and block, transposed as f32.
+            if let Some((dz, dout)) = ahead {
+                for l in 0..L {
+                    for h in 0..2 {
+                        let at = k[l] + b * sb + h * W;
+                        for g in 0..M {
+                            prefetch(rp[l].wrapping_add(dz + at * M + g * W));
+                        }
+                        if !nt {
+                            for i in 0..N {
+                                prefetch(op[l][i].wrapping_add(dout + at));
+                            }
+                        }
+                    }
+                }
+            }
+            // zs[s][c]: component c of each lane's sample k[l] + b sb + s.
+            let mut zs = [[zero; M]; 16];
+            for g in 0..M {
+                let mut r: [__m512; L] = std::array::from_fn(|l| {
+                    let at = (k[l] + b * sb) * M + g * 16;
+                    // SAFETY: T is f32 and at + 16 <= (k[l] + (b + 1) sb) M
+                    // <= n M <= rows[l].len().
+                    unsafe { _mm512_loadu_ps(rp[l].add(at) as *const f32) }
+                });
+                transpose8x16(&mut r);
+                for e in 0..16 {
+                    let idx = g * 16 + e;
+                    zs[idx / M][idx % M] = widen_step(&r, e);
+                }
+            }
+            for (s, zsv) in zs.iter().enumerate() {
+                x = gen_vstep8(&g, &x, zsv);
+                for i in 0..N {
+                    outv[i][s / W][s % W] = x[i];
+                }
+            }
+            for (i, ov) in outv.iter().enumerate() {
+                let mut lines = narrow_steps(ov);
+                untranspose8x16(&mut lines);
+                for l in 0..L {
+                    let at = k[l] + b * sb;
+                    // SAFETY: as for the f64 stores below (T is f32).
+                    unsafe { store_ps(op[l][i].add(at) as *mut f32, lines[l], stream[l][i]) };
+                }
+            }
+            continue;
+        }
         for h in 0..sb / W {
             if let Some((dz, dout)) = ahead {
                 for l in 0..L {
@@ -914,28 +1275,7 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
                 }
             }
             for (s, zsv) in zs.iter().enumerate() {
-                let mut valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zsv[0], zsv[0]);
-                for zc in zsv.iter().skip(1) {
-                    valid &= _mm512_cmp_pd_mask::<_CMP_ORD_Q>(*zc, *zc);
-                }
-                let xn: [__m512d; N] = std::array::from_fn(|i| {
-                    let mut u = _mm512_mul_pd(kk[i][0], zsv[0]);
-                    for j in 1..M {
-                        u = _mm512_fmadd_pd(kk[i][j], zsv[j], u);
-                    }
-                    for j in 0..N {
-                        u = _mm512_fmadd_pd(a[i][j], x[j], u);
-                    }
-                    if valid == 0xff {
-                        return u;
-                    }
-                    let mut p = zero;
-                    for j in 0..N {
-                        p = _mm512_fmadd_pd(phi[i][j], x[j], p);
-                    }
-                    _mm512_mask_blend_pd(valid, p, u)
-                });
-                x = xn;
+                x = gen_vstep8(&g, &x, zsv);
                 for i in 0..N {
                     outv[i][h][s] = x[i];
                 }
@@ -957,6 +1297,10 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
     if nt {
         _mm_sfence();
     }
+    // Tails: in masked vector steps.
+    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * sb).min(n));
+    // SAFETY: as for the heads.
+    unsafe { gen_masked_steps8(&g, &mut x, &rp, &op, from, [n; L]) };
     for i in 0..N {
         let mut t = [0.0; L];
         // SAFETY: t is a plain array of 8 f64.
@@ -965,8 +1309,6 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
             xs[l][i] = t[l];
         }
     }
-    let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * sb).min(n));
-    gen_scalar_steps8(cs, xs, rows, group, &from, &[n; L]);
 }
 
 /// Scalar steps of every general lane `l` over samples `from[l]..to[l]`,
