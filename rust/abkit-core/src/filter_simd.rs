@@ -30,6 +30,8 @@ const W: usize = 8;
 /// Software prefetch distance of the alpha-beta lanes' `z` rows, in samples
 /// (8 lines of f64, 4 of f32): on the AVX-512 Xeon, 1,000 x 10,000 f64 1.8
 /// -> 1.6 ns per sample, f32 1.08 -> 0.97 (docs/benchmarks.md, session 13).
+/// The AVX-512 general lanes prefetch as far ahead (3-state 1,000 x 10,000
+/// f32 2.2-2.4 -> 1.7-1.9; f64 unchanged at 3.4-3.6; session 15).
 const Z_AHEAD: usize = 64;
 
 use super::{ab_step, gen_step, prefetch, AbConst, GenConst, IoFloat, Job, AB_LANES, GEN_LANES};
@@ -1214,6 +1216,11 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
                     }
                 }
             }
+            for l in 0..L {
+                for g in 0..M {
+                    prefetch(rp[l].wrapping_add((k[l] + b * sb + Z_AHEAD) * M + g * 16));
+                }
+            }
             // zs[s][c]: component c of each lane's sample k[l] + b sb + s.
             let mut zs = [[zero; M]; 16];
             for g in 0..M {
@@ -1258,6 +1265,11 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
                             prefetch(op[l][i].wrapping_add(dout + at));
                         }
                     }
+                }
+            }
+            for l in 0..L {
+                for g in 0..M {
+                    prefetch(rp[l].wrapping_add((k[l] + b * sb + h * W + Z_AHEAD) * M + g * W));
                 }
             }
             // zs[s][c]: component c of each lane's sample k[l] + b sb + h W + s.
