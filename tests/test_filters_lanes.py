@@ -420,19 +420,22 @@ def test_general_lanes_large_output_streamed_f32(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "shape",
+    "shape, dtype",
     [
-        (16, 600),  # f64 rows >= 512 samples: 8-lane kernel by default on AVX-512
-        (3000, 120),  # 3 x 3000 x 120 f64 = 8.6 MB >= 8 MiB: streamed, >= 100 samples
-        (3000, 90),  # streamed but shorter than 100: 4-lane kernel
+        ((16, 600), np.float64),  # f64 rows >= 512 samples: 8-lane kernel by default on AVX-512
+        ((3000, 120), np.float64),  # 3 x 3000 x 120 f64 = 8.6 MB >= 8 MiB: streamed, >= 100 samples
+        ((3000, 90), np.float64),  # streamed but shorter than 100: 4-lane kernel
+        ((16, 250), np.float32),  # f32 rows >= 200 samples: 8-lane kernel (f32 transposes)
+        ((3000, 250), np.float32),  # 3 x 3000 x 250 f32 = 9 MB: streamed, 8-lane kernel
+        ((24, 199), np.float32),  # f32 rows < 200: 4-lane kernel
     ],
 )
-def test_general_default_route_equals_scalar_bitwise(shape):
+def test_general_default_route_equals_scalar_bitwise(shape, dtype):
     # The default choice between the 4- and 8-lane general kernels (in this
     # process, no environment override) against the scalar per-track loop
     # (residuals requested): the same bits whichever kernel runs.
     rng = np.random.default_rng(zlib.crc32(repr(shape).encode()))
-    z = fr.with_nans(rng, fr.kinematic_z(rng, shape[0], shape[1], 0.5), "random")
+    z = fr.with_nans(rng, fr.kinematic_z(rng, shape[0], shape[1], 0.5), "random").astype(dtype)
     f = AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5)
     lanes = f.run(z)
     scalar = f.run(z, return_residuals=True)
