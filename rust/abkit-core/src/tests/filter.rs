@@ -254,7 +254,18 @@ fn general_lanes_are_bit_identical_to_tracks_alone() {
     // 16 tracks: a second group of eight without an all-NaN track, which runs
     // in the AVX-512 general lanes where the CPU has them (f64 >= 512 samples,
     // f32 >= 200)
-    for (nt, n) in [(8, 700), (11, 100), (9, 67), (16, 700), (16, 250)] {
+    // 3,600 x 100 / x 131: outputs of 8.6 / 11.3 MB, streamed (f64: the
+    // AVX-512 general lanes with non-temporal stores, every output alignment
+    // among the rows)
+    for (nt, n) in [
+        (8, 700),
+        (11, 100),
+        (9, 67),
+        (16, 700),
+        (16, 250),
+        (3600, 100),
+        (3600, 131),
+    ] {
         for off in [0, 1, 3, 6] {
             general_lanes_case::<f64>(nt, n, off);
             general_lanes_case::<f32>(nt, n, off);
