@@ -1205,8 +1205,8 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
                 for l in 0..L {
                     for h in 0..2 {
                         let at = k[l] + b * sb + h * W;
-                        for g in 0..M {
-                            prefetch(rp[l].wrapping_add(dz + at * M + g * W));
+                        for gi in 0..M {
+                            prefetch(rp[l].wrapping_add(dz + at * M + gi * W));
                         }
                         if !nt {
                             for i in 0..N {
@@ -1217,22 +1217,22 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
                 }
             }
             for l in 0..L {
-                for g in 0..M {
-                    prefetch(rp[l].wrapping_add((k[l] + b * sb + Z_AHEAD) * M + g * 16));
+                for gi in 0..M {
+                    prefetch(rp[l].wrapping_add((k[l] + b * sb + Z_AHEAD) * M + gi * 16));
                 }
             }
             // zs[s][c]: component c of each lane's sample k[l] + b sb + s.
             let mut zs = [[zero; M]; 16];
-            for g in 0..M {
+            for gi in 0..M {
                 let mut r: [__m512; L] = std::array::from_fn(|l| {
-                    let at = (k[l] + b * sb) * M + g * 16;
+                    let at = (k[l] + b * sb) * M + gi * 16;
                     // SAFETY: T is f32 and at + 16 <= (k[l] + (b + 1) sb) M
                     // <= n M <= rows[l].len().
                     unsafe { _mm512_loadu_ps(rp[l].add(at) as *const f32) }
                 });
                 transpose8x16(&mut r);
                 for e in 0..16 {
-                    let idx = g * 16 + e;
+                    let idx = gi * 16 + e;
                     zs[idx / M][idx % M] = widen_step(&r, e);
                 }
             }
@@ -1268,8 +1268,8 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
                 }
             }
             for l in 0..L {
-                for g in 0..M {
-                    prefetch(rp[l].wrapping_add((k[l] + b * sb + h * W + Z_AHEAD) * M + g * W));
+                for gi in 0..M {
+                    prefetch(rp[l].wrapping_add((k[l] + b * sb + h * W + Z_AHEAD) * M + gi * W));
                 }
             }
             // zs[s][c]: component c of each lane's sample k[l] + b sb + h W + s.
