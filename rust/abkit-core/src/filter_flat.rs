@@ -28,7 +28,7 @@
 
 use std::arch::x86_64::*;
 
-use super::simd::{clean_steps8, is_f64, load8, no_nan8, store_line, transpose8};
+use super::simd::{clean_steps8, is_f64, load8, masked_step8, no_nan8, store_line, transpose8};
 use super::{AbConst, IoFloat, TrackState};
 use crate::Result;
 
@@ -519,15 +519,8 @@ unsafe fn compute<T: IoFloat>(
                         inject.mask[p] = 0;
                     }
                 }
-                let zj = rows[j];
-                let xp = _mm512_fmadd_pd(k.ct, k.vv, k.xv);
-                let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
-                let zz = _mm512_maskz_mov_pd(valid, zj);
-                let c1 = _mm512_mask_blend_pd(valid, k.one, k.coma);
-                let g = _mm512_maskz_mov_pd(valid, k.cg2);
-                let w = _mm512_fmadd_pd(g, zz, k.vv);
-                k.xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(k.calpha, zz));
-                k.vv = _mm512_fnmadd_pd(g, xp, w);
+                let c = [k.ct, k.calpha, k.coma, k.cg2];
+                masked_step8(c, k.one, &mut k.xv, &mut k.vv, rows[j]);
                 xo[j] = k.xv;
                 vo[j] = k.vv;
             }

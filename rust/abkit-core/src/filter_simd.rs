@@ -157,7 +157,7 @@ pub(super) fn clean_steps8(
 #[target_feature(enable = "avx512f,fma")]
 fn masked_steps8(
     zt: &[__m512d; W],
-    [ct, calpha, coma, cg2]: [__m512d; 4],
+    c: [__m512d; 4],
     xv: &mut __m512d,
     vv: &mut __m512d,
     xo: &mut [__m512d; W],
@@ -165,7 +165,31 @@ fn masked_steps8(
 ) {
     let one = _mm512_set1_pd(1.0);
     for j in 0..W {
-        let zj = zt[j];
+        // SAFETY: this function has AVX-512F and FMA.
+        unsafe { masked_step8(c, one, xv, vv, zt[j]) };
+        xo[j] = *xv;
+        vo[j] = *vv;
+    }
+}
+
+/// One alpha-beta vector step on the samples `zj` of the eight slots (NaN =
+/// missed: the slot coasts), constants `[t, alpha, 1 - alpha, g2]` per slot,
+/// `one` = 1 in every slot: the scalar `ab_step` with FMA in every slot.
+/// Shared by [`masked_steps8`] and the flat kernel's event blocks.
+///
+/// # Safety
+/// Called only from functions compiled with AVX-512F and FMA (always
+/// inlined into them).
+#[inline(always)]
+pub(super) unsafe fn masked_step8(
+    [ct, calpha, coma, cg2]: [__m512d; 4],
+    one: __m512d,
+    xv: &mut __m512d,
+    vv: &mut __m512d,
+    zj: __m512d,
+) {
+    // SAFETY: forwarded from the caller (AVX-512F and FMA).
+    unsafe {
         let xp = _mm512_fmadd_pd(ct, *vv, *xv);
         let valid = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(zj, zj);
         let zz = _mm512_maskz_mov_pd(valid, zj);
@@ -174,8 +198,6 @@ fn masked_steps8(
         let w = _mm512_fmadd_pd(g, zz, *vv);
         *xv = _mm512_fmadd_pd(c1, xp, _mm512_mul_pd(calpha, zz));
         *vv = _mm512_fnmadd_pd(g, xp, w);
-        xo[j] = *xv;
-        vo[j] = *vv;
     }
 }
 
@@ -416,6 +438,30 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     let mut vv = unsafe { _mm512_loadu_pd(v.as_ptr()) };
     let zero = _mm512_setzero_pd();
     let cs = [ct, calpha, coma, cg2];
+    // Prefetches for lane `l`'s 8 samples at `at`: the next group's `z` (and,
+    // unless streamed, outputs) and, once per block (`first`), this row's
+    // `z` Z_AHEAD samples ahead.
+    let (zp, xp, vp): (
+        [*const T; AB_LANES],
+        [*const T; AB_LANES],
+        [*const T; AB_LANES],
+    ) = (
+        std::array::from_fn(|l| z[l].as_ptr()),
+        std::array::from_fn(|l| xs[l].as_ptr()),
+        std::array::from_fn(|l| vs[l].as_ptr()),
+    );
+    let fetch = |l: usize, at: usize, first: bool| {
+        if let Some((dz, dout)) = ahead {
+            prefetch(zp[l].wrapping_add(dz + at));
+            if !nt {
+                prefetch(xp[l].wrapping_add(dout + at));
+                prefetch(vp[l].wrapping_add(dout + at));
+            }
+        }
+        if first {
+            prefetch(zp[l].wrapping_add(at + Z_AHEAD));
+        }
+    };
     for b in 0..blocks {
         let mut xbuf = [[zero; W]; 2];
         let mut vbuf = [[zero; W]; 2];
@@ -424,16 +470,8 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
             let mut rows = [_mm512_setzero_ps(); W];
             for l in 0..AB_LANES {
                 let at = k[l] + b * sb;
-                if let Some((dz, dout)) = ahead {
-                    for h in [0, W] {
-                        prefetch(z[l].as_ptr().wrapping_add(dz + at + h));
-                        if !nt {
-                            prefetch(xs[l].as_ptr().wrapping_add(dout + at + h));
-                            prefetch(vs[l].as_ptr().wrapping_add(dout + at + h));
-                        }
-                    }
-                }
-                prefetch(z[l].as_ptr().wrapping_add(at + Z_AHEAD));
+                fetch(l, at, true);
+                fetch(l, at + W, false);
                 // SAFETY: T is f32 and at + sb <= k[l] + blocks * sb <= n = z[l].len().
                 rows[l] = unsafe { _mm512_loadu_ps(z[l].as_ptr().add(at) as *const f32) };
             }
@@ -474,16 +512,7 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
             let mut rows = [zero; W];
             for l in 0..AB_LANES {
                 let at = k[l] + b * sb + h * W;
-                if let Some((dz, dout)) = ahead {
-                    prefetch(z[l].as_ptr().wrapping_add(dz + at));
-                    if !nt {
-                        prefetch(xs[l].as_ptr().wrapping_add(dout + at));
-                        prefetch(vs[l].as_ptr().wrapping_add(dout + at));
-                    }
-                }
-                if h == 0 {
-                    prefetch(z[l].as_ptr().wrapping_add(at + Z_AHEAD));
-                }
+                fetch(l, at, h == 0);
                 // SAFETY: at + W <= k[l] + blocks * sb <= n = z[l].len().
                 rows[l] = unsafe { load8(z[l].as_ptr().add(at)) };
             }
@@ -1228,28 +1257,33 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
     // once, as in `gen_lanes4`: every entry stored is written in the block,
     // and the unused half of an `f64` block stays zero).
     let mut outv = [[[zero; W]; 2]; N];
+    // Prefetches for lane `l`'s 8 samples at `at`: the next group's `z` (and,
+    // unless streamed, outputs) and, once per block (`first`), this row's
+    // `z` Z_AHEAD samples ahead.
+    let fetch = |l: usize, at: usize, first: bool| {
+        if let Some((dz, dout)) = ahead {
+            for gi in 0..M {
+                prefetch(rp[l].wrapping_add(dz + at * M + gi * W));
+            }
+            if !nt {
+                for i in 0..N {
+                    prefetch(op[l][i].wrapping_add(dout + at));
+                }
+            }
+        }
+        if first {
+            for gi in 0..M {
+                prefetch(rp[l].wrapping_add((at + Z_AHEAD) * M + gi * sb));
+            }
+        }
+    };
     for b in 0..blocks {
         if is_f32::<T>() {
             // f32: 16 samples per lane and block, transposed as f32.
-            if let Some((dz, dout)) = ahead {
-                for l in 0..L {
-                    for h in 0..2 {
-                        let at = k[l] + b * sb + h * W;
-                        for gi in 0..M {
-                            prefetch(rp[l].wrapping_add(dz + at * M + gi * W));
-                        }
-                        if !nt {
-                            for i in 0..N {
-                                prefetch(op[l][i].wrapping_add(dout + at));
-                            }
-                        }
-                    }
-                }
-            }
             for l in 0..L {
-                for gi in 0..M {
-                    prefetch(rp[l].wrapping_add((k[l] + b * sb + Z_AHEAD) * M + gi * 16));
-                }
+                let at = k[l] + b * sb;
+                fetch(l, at, true);
+                fetch(l, at + W, false);
             }
             // zs[s][c]: component c of each lane's sample k[l] + b sb + s.
             let mut zs = [[zero; M]; 16];
@@ -1284,35 +1318,20 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
             continue;
         }
         for h in 0..sb / W {
-            if let Some((dz, dout)) = ahead {
-                for l in 0..L {
-                    let at = k[l] + b * sb + h * W;
-                    for g in 0..M {
-                        prefetch(rp[l].wrapping_add(dz + at * M + g * W));
-                    }
-                    if !nt {
-                        for i in 0..N {
-                            prefetch(op[l][i].wrapping_add(dout + at));
-                        }
-                    }
-                }
-            }
             for l in 0..L {
-                for gi in 0..M {
-                    prefetch(rp[l].wrapping_add((k[l] + b * sb + h * W + Z_AHEAD) * M + gi * W));
-                }
+                fetch(l, k[l] + b * sb + h * W, h == 0);
             }
             // zs[s][c]: component c of each lane's sample k[l] + b sb + h W + s.
             let mut zs = [[zero; M]; W];
-            for g in 0..M {
+            for gi in 0..M {
                 let mut r: [__m512d; L] = std::array::from_fn(|l| {
-                    let at = (k[l] + b * sb + h * W) * M + g * W;
+                    let at = (k[l] + b * sb + h * W) * M + gi * W;
                     // SAFETY: at + W <= (k[l] + (b + 1) sb) M <= n M <= rows[l].len().
                     unsafe { load8(rp[l].add(at)) }
                 });
                 transpose8(&mut r);
                 for (i, ri) in r.iter().enumerate() {
-                    let idx = g * W + i;
+                    let idx = gi * W + i;
                     zs[idx / M][idx % M] = *ri;
                 }
             }
