@@ -2064,7 +2064,7 @@ fn ab_flat_batch<T: IoFloat>(
             // is f32 or f64 (`fits`).
             unsafe {
                 run_flat(
-                    kind, &konst, shared, &mut start, &off, zc, xs, vs, st, nt, None,
+                    kind, &konst, shared, &mut start, &off, zc, xs, vs, st, nt, None, Some(init),
                 )?
             };
         }
@@ -2228,6 +2228,7 @@ pub(crate) fn ab_tracks_flat<T: IoFloat>(
             states,
             nt,
             any_split.then_some(&split[..]),
+            None,
         )
     };
     if r.is_err() || !any_split {
@@ -2347,12 +2348,13 @@ unsafe fn run_flat<T: IoFloat>(
     states: &mut [TrackState],
     nt: bool,
     skip: Option<&[bool]>,
+    vinit: Option<Init>,
 ) -> Result<()> {
     // SAFETY: forwarded from the caller.
     unsafe {
         match kind {
             FlatKernel::Avx512 => {
-                flat::ab_flat(konst, shared, start, off, z, xs, vs, states, nt, skip)
+                flat::ab_flat(konst, shared, start, off, z, xs, vs, states, nt, skip, vinit)
             }
             FlatKernel::Avx512Generic => {
                 flatv::ab_flat_avx512(konst, shared, start, off, z, xs, vs, states, nt, skip)

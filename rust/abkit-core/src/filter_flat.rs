@@ -29,13 +29,16 @@
 use std::arch::x86_64::*;
 
 use super::simd::{clean_steps8, is_f64, load8, masked_step8, no_nan8, store_line, transpose8};
-use super::{AbConst, IoFloat, TrackState};
+use super::{AbConst, Init, IoFloat, TrackState};
 use crate::Result;
 
 const W: usize = 8;
 const LANES: usize = 8;
 /// Blocks (cache lines) of a slot's z prefetched ahead.
 const PREFETCH_BLOCKS: isize = 8;
+/// Samples of a slot's start-up stage (from its current block's first
+/// sample): three lines of `f32`, six of `f64`.
+const STG: usize = 48;
 
 /// Samples of one block: one 64-byte line of `T`.
 const fn block_len<T>() -> usize {
@@ -73,6 +76,23 @@ pub(super) struct Slot {
     pub(super) inj_c: AbConst,
     /// End of the current track.
     pub(super) end: isize,
+    /// Start-up outputs waiting in the slot's stage: bit `i` for sample
+    /// `pos + i`.
+    pub(super) stg: u64,
+    /// A track started in the vector steps: its first sample (`vs0`) and,
+    /// for a two-point start, its second (`vs1`), while pending
+    /// (`isize::MAX`: none).
+    pub(super) vs0: isize,
+    pub(super) vs1: isize,
+}
+
+/// Per-step lane masks of the vector start-ups in a block: `s0[p]` the
+/// lanes whose track starts at step `p`, `s1[p]` those at their second
+/// sample (two-point start); `v0`: the velocity output at the first sample.
+struct Starts {
+    s0: [u8; 16],
+    s1: [u8; 16],
+    v0: __m512d,
 }
 
 /// Regions: runs of consecutive tracks of at least `target` samples (a
@@ -128,6 +148,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     states: &mut [TrackState],
     nt: bool,
     skip: Option<&[bool]>,
+    vinit: Option<Init>,
 ) -> Result<()> {
     let n_tracks = states.len();
     let total = off.last().copied().unwrap_or(0);
@@ -160,6 +181,9 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         inj_v: 0.0,
         inj_c: c0,
         end: 0,
+        stg: 0,
+        vs0: isize::MAX,
+        vs1: isize::MAX,
     }; LANES];
     let mut inject = Inject {
         mask: [0; 16],
@@ -175,10 +199,15 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     let coma = _mm512_set1_pd(c0.one_minus_alpha);
     let cg2 = _mm512_set1_pd(c0.g2);
 
+    // Start-up stages, one per slot: sample `pos + i` of the slot at index
+    // `i` (bit `i` of `Slot::stg` set when it holds a start-up output).
+    let mut stg_x = [[T::from_f64(0.0); STG]; LANES];
+    let mut stg_v = [[T::from_f64(0.0); STG]; LANES];
     // Start track `j` (at the start of its region or at a boundary) in slot
-    // `s`; returns the sample at which it runs (`isize::MAX`: never).
+    // `s` (index `l`); returns the sample at which it runs (`isize::MAX`:
+    // never).
     macro_rules! start_track {
-        ($s:expr, $j:expr) => {{
+        ($s:expr, $l:expr, $j:expr) => {{
             let j: usize = $j;
             let (a, e) = (off[j], off[j + 1]);
             // The slot's next tracks' states: the states are touched once
@@ -187,19 +216,62 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 let p = ahead as *const TrackState;
                 super::prefetch(p);
                 super::prefetch(p.wrapping_byte_add(64));
-                // And the output lines its start-up writes.
-                let g = off[j + 4];
-                _mm_prefetch::<_MM_HINT_ET0>(xs.as_ptr().wrapping_add(g) as *const i8);
-                _mm_prefetch::<_MM_HINT_ET0>(vs.as_ptr().wrapping_add(g) as *const i8);
             }
             let st = &mut states[j];
+            let sl: &mut Slot = $s;
+            // The usual start (a fresh track, shared gains, its first one
+            // or two samples valid) runs in the vector steps: the same
+            // values as `ab_start`'s fast path.
+            let vstart = shared
+                && st.phase == 0.0
+                && match vinit {
+                    Some(Init::TwoPoint) => {
+                        e - a >= 2 && !z[a].to_f64().is_nan() && !z[a + 1].to_f64().is_nan()
+                    }
+                    Some(Init::First) => e > a && !z[a].to_f64().is_nan(),
+                    None => false,
+                };
+            if vstart {
+                st.phase = 2.0;
+                st.since = 0.0;
+                sl.cur = j;
+                sl.end = e as isize;
+                sl.skip = a as isize;
+                sl.running = true;
+                sl.inj = isize::MAX;
+                sl.vs0 = a as isize;
+                sl.vs1 = if vinit == Some(Init::TwoPoint) {
+                    a as isize + 1
+                } else {
+                    isize::MAX
+                };
+            } else {
+            // The start-up writes its outputs into the slot's stage, from
+            // which the blocks take them, so that the lines at the track
+            // boundaries are stored whole (streamed): a store of part of a
+            // line waits for the line from memory. A start-up longer than
+            // the stage (a track beginning with many NaN) goes on in the
+            // outputs themselves.
+            let d = (a as isize - sl.pos) as usize;
             let n_run = if st.phase >= 2.0 {
                 0
+            } else if d < STG {
+                let l1 = (e - a).min(STG - d);
+                let (gx, gv) = (&mut stg_x[$l][d..d + l1], &mut stg_v[$l][d..d + l1]);
+                let r1 = start(j, st, &z[a..a + l1], gx, gv)?.min(l1);
+                if r1 > 0 {
+                    sl.stg |= ((1u64 << r1) - 1) << d;
+                }
+                if r1 == l1 && st.phase < 2.0 && a + l1 < e {
+                    let b = a + l1;
+                    r1 + start(j, st, &z[b..e], &mut xs[b..e], &mut vs[b..e])?
+                } else {
+                    r1
+                }
             } else {
                 start(j, st, &z[a..e], &mut xs[a..e], &mut vs[a..e])?
             };
             let q = a + n_run.min(e - a);
-            let sl: &mut Slot = $s;
             sl.cur = j;
             sl.end = e as isize;
             sl.skip = q as isize;
@@ -220,6 +292,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 sl.running = false;
                 sl.inj = isize::MAX;
             }
+            }
         }};
     }
     // Give slot `l` its next region (or mark it idle).
@@ -232,7 +305,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 slots[l].busy = true;
                 slots[l].region_end = j1;
                 slots[l].pos = align_down(off[j0] as isize);
-                start_track!(&mut slots[l], j0);
+                start_track!(&mut slots[l], l, j0);
             } else {
                 slots[l].busy = false;
             }
@@ -251,6 +324,11 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         cg2,
         one,
     };
+    let mut starts = Starts {
+        s0: [0; 16],
+        s1: [0; 16],
+        v0: _mm512_set1_pd(if vinit == Some(Init::First) { 0.0 } else { f64::NAN }),
+    };
     let mut xbuf = [[zero; W]; 2];
     let mut vbuf = [[zero; W]; 2];
     let mut caps: Vec<(usize, usize, usize)> = Vec::with_capacity(4 * LANES);
@@ -266,7 +344,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         // they compute on a line of zeros and store nothing.
         let mut n_fast = isize::MAX;
         for s in slots.iter().filter(|s| s.busy) {
-            let lim = (s.end - 1).min(s.inj);
+            let lim = (s.end - 1).min(s.inj).min(s.vs0).min(s.vs1);
             n_fast = if s.pos >= s.skip && lim >= s.pos + sbi {
                 n_fast.min((lim - s.pos) / sbi)
             } else {
@@ -290,7 +368,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 };
             }
             // SAFETY: every src[l] has sb readable samples.
-            unsafe { compute(&src, halves, &mut k, None, &mut xbuf, &mut vbuf) };
+            unsafe { compute(&src, halves, &mut k, None, None, &mut xbuf, &mut vbuf) };
             for (l, s) in slots.iter_mut().enumerate() {
                 if !s.busy {
                     continue;
@@ -317,6 +395,9 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         // start-ups, starts of running, end-of-track captures.
         let mut masks = [0u32; LANES];
         let mut any_inj = false;
+        let mut any_vs = false;
+        starts.s0 = [0; 16];
+        starts.s1 = [0; 16];
         let mut done = [false; LANES];
         caps.clear();
         for l in 0..LANES {
@@ -351,6 +432,17 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                     any_inj = true;
                     s.inj = isize::MAX;
                 }
+                // Pending vector start-up steps in this block.
+                if s.vs0 < bend {
+                    starts.s0[(s.vs0 - pos) as usize] |= 1 << l;
+                    s.vs0 = isize::MAX;
+                    any_vs = true;
+                }
+                if s.vs1 < bend {
+                    starts.s1[(s.vs1 - pos) as usize] |= 1 << l;
+                    s.vs1 = isize::MAX;
+                    any_vs = true;
+                }
                 if s.end > bend {
                     break;
                 }
@@ -364,10 +456,11 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                     done[l] = true;
                     break;
                 }
-                start_track!(&mut *s, nxt);
+                start_track!(&mut *s, l, nxt);
                 clear(&mut m, off[nxt] as isize, s.skip);
             }
-            masks[l] = m;
+            // Staged start-up outputs are stored with the block.
+            masks[l] = m | (s.stg as u32 & full);
         }
         let mut src = [std::ptr::null::<T>(); LANES];
         for (l, s) in slots.iter().enumerate() {
@@ -390,6 +483,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             };
         }
         let inj = if any_inj { Some(&mut inject) } else { None };
+        let vst = if any_vs { Some(&mut starts) } else { None };
         // SAFETY: every src[l] has sb readable samples.
         unsafe {
             compute(
@@ -397,6 +491,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 halves,
                 &mut k,
                 inj.map(|i| (i, shared)),
+                vst,
                 &mut xbuf,
                 &mut vbuf,
             )
@@ -406,6 +501,11 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             let m = masks[l];
             if !s.busy || m == 0 {
                 continue;
+            }
+            let sbits = s.stg as u32 & full;
+            if sbits != 0 {
+                // SAFETY: the stage holds STG >= 16 samples.
+                unsafe { merge_stage(&mut xbuf, &mut vbuf, l, sbits, &stg_x[l], &stg_v[l]) };
             }
             let pos = s.pos;
             let inside = pos >= 0 && pos + sbi <= len;
@@ -447,6 +547,14 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             states[j].x[1] = vr[p];
         }
         for l in 0..LANES {
+            let s = &mut slots[l];
+            if s.stg != 0 {
+                s.stg >>= sb;
+                if s.stg != 0 {
+                    stg_x[l].copy_within(sb.., 0);
+                    stg_v[l].copy_within(sb.., 0);
+                }
+            }
             if done[l] {
                 refill!(l);
             } else if slots[l].busy {
@@ -485,15 +593,17 @@ unsafe fn compute<T: IoFloat>(
     halves: usize,
     k: &mut Kern,
     inj: Option<(&mut Inject, bool)>,
+    starts: Option<&mut Starts>,
     xbuf: &mut [[__m512d; W]; 2],
     vbuf: &mut [[__m512d; W]; 2],
 ) {
     // SAFETY: forwarded from the caller.
     unsafe {
         let mut inj = inj;
+        let mut starts = starts;
         for h in 0..halves {
             let mut rows: [__m512d; W] = std::array::from_fn(|l| load8(src[l].add(h * W)));
-            let clean = inj.is_none() && no_nan8(&rows);
+            let clean = inj.is_none() && starts.is_none() && no_nan8(&rows);
             transpose8(&mut rows);
             let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
             if clean {
@@ -520,12 +630,62 @@ unsafe fn compute<T: IoFloat>(
                     }
                 }
                 let c = [k.ct, k.calpha, k.coma, k.cg2];
-                masked_step8(c, k.one, &mut k.xv, &mut k.vv, rows[j]);
+                let (m0, m1) = match starts.as_deref_mut() {
+                    Some(st) => {
+                        let p = h * W + j;
+                        (std::mem::take(&mut st.s0[p]), std::mem::take(&mut st.s1[p]))
+                    }
+                    None => (0, 0),
+                };
+                if m0 | m1 == 0 {
+                    masked_step8(c, k.one, &mut k.xv, &mut k.vv, rows[j]);
+                } else {
+                    // Start-ups: at the first sample x = z (velocity `v0`),
+                    // at the second (two-point) x = z, v = (z - z0) / T,
+                    // as `ab_start`.
+                    let (zj, x0) = (rows[j], k.xv);
+                    masked_step8(c, k.one, &mut k.xv, &mut k.vv, zj);
+                    let vel = _mm512_div_pd(_mm512_sub_pd(zj, x0), k.ct);
+                    k.xv = _mm512_mask_blend_pd(m0 | m1, k.xv, zj);
+                    k.vv = _mm512_mask_blend_pd(m1, k.vv, vel);
+                    if let Some(st) = starts.as_deref() {
+                        k.vv = _mm512_mask_blend_pd(m0, k.vv, st.v0);
+                    }
+                }
                 xo[j] = k.xv;
                 vo[j] = k.vv;
             }
             transpose8(xo);
             transpose8(vo);
+        }
+    }
+}
+
+/// Replace slot `l`'s samples `p` with bit `p` of `bits` set in a transposed
+/// block by the staged start-up outputs `gx[p]`, `gv[p]` (exact: an `f32`
+/// output is narrowed from its `f64` again on store).
+///
+/// # Safety
+/// AVX-512F is available; `T` is `f32` or `f64`.
+#[inline]
+#[target_feature(enable = "avx512f")]
+unsafe fn merge_stage<T: 'static>(
+    xbuf: &mut [[__m512d; W]; 2],
+    vbuf: &mut [[__m512d; W]; 2],
+    l: usize,
+    bits: u32,
+    gx: &[T; STG],
+    gv: &[T; STG],
+) {
+    for h in 0..2 {
+        let hb = (bits >> (h * W)) as u8;
+        if hb != 0 {
+            // SAFETY: h * W + 8 <= 16 <= STG elements.
+            unsafe {
+                let (x, v) = (load8(gx.as_ptr().add(h * W)), load8(gv.as_ptr().add(h * W)));
+                xbuf[h][l] = _mm512_mask_blend_pd(hb, xbuf[h][l], x);
+                vbuf[h][l] = _mm512_mask_blend_pd(hb, vbuf[h][l], v);
+            }
         }
     }
 }

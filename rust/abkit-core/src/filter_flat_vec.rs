@@ -192,6 +192,9 @@ unsafe fn kernel<
         inj_v: 0.0,
         inj_c: c0,
         end: 0,
+        stg: 0,
+        vs0: isize::MAX,
+        vs1: isize::MAX,
     }; L];
     let mut inject = Inject::<L> {
         steps: 0,

@@ -640,12 +640,23 @@ fn flat_avx2_case<T: IoFloat>(
     given: bool,
     nt: bool,
 ) {
-    flat_or_rows_case::<T>(lens, off, shared, init, given, nt, false, true)
+    flat_or_rows_case::<T>(lens, off, shared, init, given, nt, Kernel::Flat2, true)
 }
 
-/// [`flat_avx2_case`] with the short-row lanes (`avx2::ab_short_rows`)
-/// instead of the flat kernel if `rows` (all `lens` equal); `z` without
-/// NaN unless `nan`.
+/// Which kernel [`flat_or_rows_case`] runs.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kernel {
+    /// `flatv::ab_flat_avx2`.
+    Flat2,
+    /// `flat::ab_flat` (AVX-512), with the vector start-ups.
+    Flat512,
+    /// `avx2::ab_short_rows`.
+    Rows,
+}
+
+/// [`flat_avx2_case`] with the kernel `which` (the short-row lanes need all
+/// `lens` equal); `z` without NaN unless `nan`.
 #[cfg(target_arch = "x86_64")]
 #[allow(clippy::too_many_arguments)]
 fn flat_or_rows_case<T: IoFloat>(
@@ -655,7 +666,7 @@ fn flat_or_rows_case<T: IoFloat>(
     init: Init,
     given: bool,
     nt: bool,
-    rows: bool,
+    which: Kernel,
     nan: bool,
 ) {
     let n_tracks = lens.len();
@@ -742,7 +753,7 @@ fn flat_or_rows_case<T: IoFloat>(
         ))
     };
     // SAFETY: the caller checked AVX2 and FMA; T is f32 or f64.
-    if rows {
+    if which == Kernel::Rows {
         let n = lens.first().copied().unwrap_or(0);
         assert!(lens.iter().all(|&l| l == n));
         let pv: Vec<(f64, f64, f64)> = if shared {
@@ -760,6 +771,24 @@ fn flat_or_rows_case<T: IoFloat>(
                 &mut vb[2 * off + 1..2 * off + 1 + total],
                 &mut sb,
                 nt,
+            )
+        }
+        .unwrap();
+    } else if which == Kernel::Flat512 {
+        // SAFETY: the caller checked AVX-512F and FMA; T is f32 or f64.
+        unsafe {
+            flat::ab_flat(
+                &konst,
+                shared,
+                &mut start,
+                &offs,
+                &z,
+                &mut xb[off..off + total],
+                &mut vb[2 * off + 1..2 * off + 1 + total],
+                &mut sb,
+                nt,
+                None,
+                Some(step_init),
             )
         }
         .unwrap();
@@ -787,7 +816,7 @@ fn flat_or_rows_case<T: IoFloat>(
             .position(|(p, q)| p.to_f64().to_bits() != q.to_f64().to_bits())
     };
     let what = format!(
-        "off {off} shared {shared} nt {nt} rows {rows} lens {} x {}",
+        "off {off} shared {shared} nt {nt} {which:?} nan {nan} lens {} x {}",
         lens.len(),
         lens.first().copied().unwrap_or(0)
     );
@@ -842,6 +871,53 @@ fn flat_avx2_kernel_is_bit_identical_to_tracks_alone() {
     }
 }
 
+/// The AVX-512 flat kernel (`flat::ab_flat`), with its track starts in the
+/// vector steps (fresh tracks, shared gains, valid first samples) and the
+/// scalar start-ups (NaN-led tracks, per-track gains, given states), against
+/// each track alone.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn flat_avx512_kernel_is_bit_identical_to_tracks_alone() {
+    if !(std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("fma")) {
+        eprintln!("no AVX-512F+FMA on this CPU: the AVX-512 flat kernel not tested");
+        return;
+    }
+    let mut mixed: Vec<usize> = (0..600)
+        .map(|i| [0, 1, 2, 3, 5, 8, 9, 16, 17, 40, 100][(i * 7) % 11])
+        .collect();
+    mixed.extend([1000, 0, 2, 257]);
+    let few = vec![3000, 17, 2000, 5000, 1];
+    // Rows of 100 (every slot's boundaries in the same blocks), of 15 and
+    // 16 (two-point starts across a block boundary), of 2 and 1.
+    let cases: [Vec<usize>; 8] = [
+        mixed,
+        vec![100; 300],
+        vec![15; 200],
+        vec![16; 200],
+        vec![2; 300],
+        vec![1; 100],
+        vec![4096],
+        few,
+    ];
+    let k = Kernel::Flat512;
+    for lens in cases.iter() {
+        for off in [0, 1, 3, 7, 13] {
+            for shared in [true, false] {
+                for nt in [false, true] {
+                    for nan in [true, false] {
+                        for init in [Init::TwoPoint, Init::First] {
+                            flat_or_rows_case::<f64>(lens, off, shared, init, false, nt, k, nan);
+                            flat_or_rows_case::<f32>(lens, off, shared, init, false, nt, k, nan);
+                        }
+                    }
+                }
+            }
+        }
+        flat_or_rows_case::<f64>(lens, 5, true, Init::TwoPoint, true, false, k, true);
+        flat_or_rows_case::<f32>(lens, 9, true, Init::First, true, true, k, false);
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn short_row_lanes_are_bit_identical_to_tracks_alone() {
@@ -872,15 +948,16 @@ fn short_row_lanes_are_bit_identical_to_tracks_alone() {
                 for nt in [false, true] {
                     for nan in [true, false] {
                         let two = Init::TwoPoint;
-                        flat_or_rows_case::<f64>(&lens, off, shared, two, false, nt, true, nan);
-                        flat_or_rows_case::<f32>(&lens, off, shared, two, false, nt, true, nan);
+                        let k = Kernel::Rows;
+                        flat_or_rows_case::<f64>(&lens, off, shared, two, false, nt, k, nan);
+                        flat_or_rows_case::<f32>(&lens, off, shared, two, false, nt, k, nan);
                     }
                 }
             }
         }
         for (init, given) in [(Init::First, false), (Init::TwoPoint, true)] {
-            flat_or_rows_case::<f64>(&lens, 5, false, init, given, true, true, true);
-            flat_or_rows_case::<f32>(&lens, 9, true, init, given, false, true, false);
+            flat_or_rows_case::<f64>(&lens, 5, false, init, given, true, Kernel::Rows, true);
+            flat_or_rows_case::<f32>(&lens, 9, true, init, given, false, Kernel::Rows, false);
         }
     }
 }
