@@ -9,7 +9,8 @@
 //! ```
 //!
 //! A fourth argument `1`: every timed run continues from the previous
-//! run's final states (streaming with `state=`), instead of fresh tracks.
+//! run's final states (streaming with `state=`), instead of fresh tracks; a
+//! fifth, `64` or `32`: only that precision.
 use abkit_core::filter::{filter_ab, Init, IoFloat, Measurements, TrackState};
 use std::time::Instant;
 
@@ -58,10 +59,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|s| s.parse::<usize>())
         .collect::<Result<Vec<_>, _>>()?;
     let &[n, len, reps, ..] = &a[..] else {
-        return Err("usage: rowbench N_TRACKS LEN REPS [CONTINUE]".into());
+        return Err("usage: rowbench N_TRACKS LEN REPS [CONTINUE [DTYPE]]".into());
     };
     let cont = a.get(3) == Some(&1);
-    bench::<f64>("f64", n, len, reps, cont)?;
-    bench::<f32>("f32", n, len, reps, cont)?;
+    // DTYPE: 0 both (default), 64 only f64, 32 only f32.
+    let dtype = a.get(4).copied().unwrap_or(0);
+    if dtype != 32 {
+        bench::<f64>("f64", n, len, reps, cont)?;
+    }
+    if dtype != 64 {
+        bench::<f32>("f32", n, len, reps, cont)?;
+    }
     Ok(())
 }

@@ -354,6 +354,39 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 break;
             }
         }
+        if n_fast > 0 && slots.iter().all(|s| s.busy) {
+            // Every slot busy (all but the last blocks): the same blocks
+            // with the slots' pointers hoisted.
+            let zb: [*const T; LANES] =
+                std::array::from_fn(|l| z.as_ptr().wrapping_offset(slots[l].pos));
+            let xb: [*mut T; LANES] =
+                std::array::from_fn(|l| xs.as_mut_ptr().wrapping_offset(slots[l].pos));
+            let vb: [*mut T; LANES] =
+                std::array::from_fn(|l| vs.as_mut_ptr().wrapping_offset(slots[l].pos));
+            for b in 0..n_fast {
+                let o = b * sbi;
+                let src: [*const T; LANES] = std::array::from_fn(|l| {
+                    let p = zb[l].wrapping_offset(o);
+                    super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
+                    p
+                });
+                // SAFETY: every src[l] has sb readable samples (fast blocks
+                // end before each slot's track's last sample).
+                unsafe { compute(&src, halves, &mut k, None, None, &mut xbuf, &mut vbuf) };
+                for l in 0..LANES {
+                    // SAFETY: as in the blocks below.
+                    unsafe {
+                        store_line(xb[l].wrapping_offset(o), xbuf[0][l], xbuf[1][l], nt);
+                        let vn = nt && v_aligned;
+                        store_line(vb[l].wrapping_offset(o), vbuf[0][l], vbuf[1][l], vn);
+                    }
+                }
+            }
+            for s in slots.iter_mut() {
+                s.pos += n_fast * sbi;
+            }
+            continue;
+        }
         for _ in 0..n_fast {
             let mut src = [std::ptr::null::<T>(); LANES];
             for (l, s) in slots.iter().enumerate() {
