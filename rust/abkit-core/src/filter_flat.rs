@@ -28,7 +28,10 @@
 
 use std::arch::x86_64::*;
 
-use super::simd::{clean_steps8, is_f64, load8, masked_step8, no_nan8, store_line, transpose8};
+use super::simd::{
+    clean_steps8, is_f64, load8, masked_step8, masked_steps8, narrow_steps, no_nan16, no_nan8,
+    store_line, store_ps, transpose8, transpose8x16, untranspose8x16, widen_step,
+};
 use super::{AbConst, Init, IoFloat, TrackState};
 use crate::Result;
 
@@ -370,6 +373,40 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                     super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
                     p
                 });
+                if !is_f64::<T>() {
+                    // f32: the eight lines transposed as f32 (half the
+                    // shuffles of widened f64 transposes), as in the row
+                    // lanes (`simd::ab_lanes8`).
+                    // SAFETY: T is f32; every src[l] has 16 readable samples;
+                    // the stores as in the blocks below.
+                    unsafe {
+                        let mut rows: [__m512; W] =
+                            std::array::from_fn(|l| _mm512_loadu_ps(src[l] as *const f32));
+                        let clean = no_nan16(&rows);
+                        transpose8x16(&mut rows);
+                        let c = [k.ct, k.calpha, k.coma, k.cg2];
+                        for h in 0..2 {
+                            let zt: [__m512d; W] =
+                                std::array::from_fn(|j| widen_step(&rows, h * W + j));
+                            let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
+                            if clean {
+                                clean_steps8(&zt, c, &mut k.xv, &mut k.vv, xo, vo);
+                            } else {
+                                masked_steps8(&zt, c, &mut k.xv, &mut k.vv, xo, vo);
+                            }
+                        }
+                        let mut xl = narrow_steps(&xbuf);
+                        let mut vl = narrow_steps(&vbuf);
+                        untranspose8x16(&mut xl);
+                        untranspose8x16(&mut vl);
+                        for l in 0..LANES {
+                            store_ps(xb[l].wrapping_offset(o) as *mut f32, xl[l], nt);
+                            let vn = nt && v_aligned;
+                            store_ps(vb[l].wrapping_offset(o) as *mut f32, vl[l], vn);
+                        }
+                    }
+                    continue;
+                }
                 // SAFETY: every src[l] has sb readable samples (fast blocks
                 // end before each slot's track's last sample).
                 unsafe { compute(&src, halves, &mut k, None, None, &mut xbuf, &mut vbuf) };

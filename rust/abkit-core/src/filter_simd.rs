@@ -155,7 +155,7 @@ pub(super) fn clean_steps8(
 /// to `xo`, `vo`.
 #[inline]
 #[target_feature(enable = "avx512f,fma")]
-fn masked_steps8(
+pub(super) fn masked_steps8(
     zt: &[__m512d; W],
     c: [__m512d; 4],
     xv: &mut __m512d,
@@ -208,7 +208,7 @@ pub(super) unsafe fn masked_step8(
 /// AVX-512F is available.
 #[inline]
 #[target_feature(enable = "avx512f")]
-unsafe fn store_ps(p: *mut f32, v: __m512, nt: bool) {
+pub(super) unsafe fn store_ps(p: *mut f32, v: __m512, nt: bool) {
     // SAFETY: forwarded from the caller.
     unsafe {
         if nt {
@@ -261,7 +261,7 @@ pub(super) fn transpose8(r: &mut [__m512d; 8]) {
 /// `f64` vectors need 48 (docs/benchmarks.md, session 15).
 #[inline]
 #[target_feature(enable = "avx512f")]
-fn transpose8x16(r: &mut [__m512; 8]) {
+pub(super) fn transpose8x16(r: &mut [__m512; 8]) {
     let pd = _mm512_castps_pd;
     // Stage 1: pairs of rows interleaved within 128-bit lanes.
     let a01 = pd(_mm512_unpacklo_ps(r[0], r[1]));
@@ -298,7 +298,7 @@ fn transpose8x16(r: &mut [__m512; 8]) {
 /// eight rows of 16 samples.
 #[inline]
 #[target_feature(enable = "avx512f")]
-fn untranspose8x16(r: &mut [__m512; 8]) {
+pub(super) fn untranspose8x16(r: &mut [__m512; 8]) {
     let pd = _mm512_castps_pd;
     let it = _mm512_set_epi64(13, 12, 9, 8, 5, 4, 1, 0);
     let iu = _mm512_set_epi64(15, 14, 11, 10, 7, 6, 3, 2);
@@ -329,7 +329,7 @@ fn untranspose8x16(r: &mut [__m512; 8]) {
 /// widened to `f64` (exact).
 #[inline]
 #[target_feature(enable = "avx512f")]
-fn widen_step(r: &[__m512; 8], s: usize) -> __m512d {
+pub(super) fn widen_step(r: &[__m512; 8], s: usize) -> __m512d {
     let v = r[(s / 8) * 4 + s % 4];
     let half = if (s / 4).is_multiple_of(2) {
         _mm512_castps512_ps256(v)
@@ -344,7 +344,7 @@ fn widen_step(r: &[__m512; 8], s: usize) -> __m512d {
 /// [`transpose8x16`].
 #[inline]
 #[target_feature(enable = "avx512f")]
-fn narrow_steps(o: &[[__m512d; W]; 2]) -> [__m512; 8] {
+pub(super) fn narrow_steps(o: &[[__m512d; W]; 2]) -> [__m512; 8] {
     let pair = |lo: __m512d, hi: __m512d| {
         let lo = _mm256_castps_pd(_mm512_cvtpd_ps(lo));
         let hi = _mm256_castps_pd(_mm512_cvtpd_ps(hi));
@@ -359,7 +359,7 @@ fn narrow_steps(o: &[[__m512d; W]; 2]) -> [__m512; 8] {
 /// Whether none of the 128 `f32` values of `rows` is NaN (as [`no_nan8`]).
 #[inline]
 #[target_feature(enable = "avx512f")]
-fn no_nan16(rows: &[__m512; W]) -> bool {
+pub(super) fn no_nan16(rows: &[__m512; W]) -> bool {
     let s01 = _mm512_add_ps(rows[0], rows[1]);
     let s23 = _mm512_add_ps(rows[2], rows[3]);
     let s45 = _mm512_add_ps(rows[4], rows[5]);
