@@ -2064,7 +2064,18 @@ fn ab_flat_batch<T: IoFloat>(
             // is f32 or f64 (`fits`).
             unsafe {
                 run_flat(
-                    kind, &konst, shared, &mut start, &off, zc, xs, vs, st, nt, None, Some(init),
+                    kind,
+                    &konst,
+                    shared,
+                    &mut start,
+                    &off,
+                    zc,
+                    xs,
+                    vs,
+                    st,
+                    nt,
+                    None,
+                    Some(flat::VecStart::Rows(init)),
                 )?
             };
         }
@@ -2158,6 +2169,11 @@ fn short_rows_flat() -> bool {
 #[cfg(target_arch = "x86_64")]
 pub(crate) use flat::Start as FlatStart;
 
+/// Fresh tracks started in [`ab_tracks_flat`]'s vector steps (see
+/// `flat::VecStart`).
+#[cfg(target_arch = "x86_64")]
+pub(crate) use flat::VecStart as FlatVecStart;
+
 /// For [`crate::ragged`]: alpha-beta over the back-to-back tracks
 /// `off[j]..off[j+1]` of the flat `z`, `xs`, `vs` with the flat vector
 /// kernel, gains `(T, alpha, g = beta / T)` per track (or one for all).
@@ -2183,6 +2199,7 @@ pub(crate) fn ab_tracks_flat<T: IoFloat>(
     vs: &mut [T],
     states: &mut [TrackState],
     parallel: bool,
+    vstart: Option<FlatVecStart>,
 ) -> Option<Result<()>> {
     let kind = flat_kernel()?;
     if !simd::fits::<T>(0, 32) || gains.is_empty() {
@@ -2228,7 +2245,7 @@ pub(crate) fn ab_tracks_flat<T: IoFloat>(
             states,
             nt,
             any_split.then_some(&split[..]),
-            None,
+            vstart,
         )
     };
     if r.is_err() || !any_split {
@@ -2348,14 +2365,14 @@ unsafe fn run_flat<T: IoFloat>(
     states: &mut [TrackState],
     nt: bool,
     skip: Option<&[bool]>,
-    vinit: Option<Init>,
+    vstart: Option<flat::VecStart>,
 ) -> Result<()> {
     // SAFETY: forwarded from the caller.
     unsafe {
         match kind {
-            FlatKernel::Avx512 => {
-                flat::ab_flat(konst, shared, start, off, z, xs, vs, states, nt, skip, vinit)
-            }
+            FlatKernel::Avx512 => flat::ab_flat(
+                konst, shared, start, off, z, xs, vs, states, nt, skip, vstart,
+            ),
             FlatKernel::Avx512Generic => {
                 flatv::ab_flat_avx512(konst, shared, start, off, z, xs, vs, states, nt, skip)
             }

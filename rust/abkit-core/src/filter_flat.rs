@@ -89,13 +89,35 @@ pub(super) struct Slot {
     pub(super) vs1: isize,
 }
 
+/// Which fresh tracks start in the flat kernel's vector steps, and with
+/// whose arithmetic (each the same bits as its scalar start-up).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum VecStart {
+    /// As `filter::ab_start`: `Init::First` starts with the rate `+0.0`.
+    Rows(Init),
+    /// As `ragged::track_tv`: the state `H^+ z` summed from `-0.0`, so
+    /// `Init::First` starts with the rate `-0.0 + 0 * z` (`-0.0` for a
+    /// negative `z`).
+    Tracks(Init),
+}
+
+impl VecStart {
+    fn init(self) -> Init {
+        match self {
+            VecStart::Rows(i) | VecStart::Tracks(i) => i,
+        }
+    }
+}
+
 /// Per-step lane masks of the vector start-ups in a block: `s0[p]` the
 /// lanes whose track starts at step `p`, `s1[p]` those at their second
-/// sample (two-point start); `v0`: the velocity output at the first sample.
+/// sample (two-point start); `v0`: the velocity at the first sample
+/// (`Init::First`: `v0 + signed * z`; two-point: NaN).
 struct Starts {
     s0: [u8; 16],
     s1: [u8; 16],
     v0: __m512d,
+    signed: Option<__m512d>,
 }
 
 /// Regions: runs of consecutive tracks of at least `target` samples (a
@@ -151,8 +173,9 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     states: &mut [TrackState],
     nt: bool,
     skip: Option<&[bool]>,
-    vinit: Option<Init>,
+    vstart: Option<VecStart>,
 ) -> Result<()> {
+    let vinit = vstart.map(VecStart::init);
     let n_tracks = states.len();
     let total = off.last().copied().unwrap_or(0);
     if off.len() != n_tracks + 1 || z.len() < total || xs.len() < total || vs.len() < total {
@@ -249,52 +272,52 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                     isize::MAX
                 };
             } else {
-            // The start-up writes its outputs into the slot's stage, from
-            // which the blocks take them, so that the lines at the track
-            // boundaries are stored whole (streamed): a store of part of a
-            // line waits for the line from memory. A start-up longer than
-            // the stage (a track beginning with many NaN) goes on in the
-            // outputs themselves.
-            let d = (a as isize - sl.pos) as usize;
-            let n_run = if st.phase >= 2.0 {
-                0
-            } else if d < STG {
-                let l1 = (e - a).min(STG - d);
-                let (gx, gv) = (&mut stg_x[$l][d..d + l1], &mut stg_v[$l][d..d + l1]);
-                let r1 = start(j, st, &z[a..a + l1], gx, gv)?.min(l1);
-                if r1 > 0 {
-                    sl.stg |= ((1u64 << r1) - 1) << d;
-                }
-                if r1 == l1 && st.phase < 2.0 && a + l1 < e {
-                    let b = a + l1;
-                    r1 + start(j, st, &z[b..e], &mut xs[b..e], &mut vs[b..e])?
+                // The start-up writes its outputs into the slot's stage, from
+                // which the blocks take them, so that the lines at the track
+                // boundaries are stored whole (streamed): a store of part of a
+                // line waits for the line from memory. A start-up longer than
+                // the stage (a track beginning with many NaN) goes on in the
+                // outputs themselves.
+                let d = (a as isize - sl.pos) as usize;
+                let n_run = if st.phase >= 2.0 {
+                    0
+                } else if d < STG {
+                    let l1 = (e - a).min(STG - d);
+                    let (gx, gv) = (&mut stg_x[$l][d..d + l1], &mut stg_v[$l][d..d + l1]);
+                    let r1 = start(j, st, &z[a..a + l1], gx, gv)?.min(l1);
+                    if r1 > 0 {
+                        sl.stg |= ((1u64 << r1) - 1) << d;
+                    }
+                    if r1 == l1 && st.phase < 2.0 && a + l1 < e {
+                        let b = a + l1;
+                        r1 + start(j, st, &z[b..e], &mut xs[b..e], &mut vs[b..e])?
+                    } else {
+                        r1
+                    }
                 } else {
-                    r1
+                    start(j, st, &z[a..e], &mut xs[a..e], &mut vs[a..e])?
+                };
+                let q = a + n_run.min(e - a);
+                sl.cur = j;
+                sl.end = e as isize;
+                sl.skip = q as isize;
+                if st.phase >= 2.0 && q < e {
+                    sl.running = true;
+                    sl.inj = q as isize;
+                    // Two separate loads: each is forwarded from the start-up's
+                    // store (one 16-byte load of both would wait until the
+                    // stores, queued behind the start-up's output stores, reach
+                    // the cache).
+                    // SAFETY: reads of two f64 fields of a live state.
+                    unsafe {
+                        sl.inj_x = std::ptr::read_volatile(&st.x[0]);
+                        sl.inj_v = std::ptr::read_volatile(&st.x[1]);
+                    }
+                    sl.inj_c = if shared { c0 } else { konst(j) };
+                } else {
+                    sl.running = false;
+                    sl.inj = isize::MAX;
                 }
-            } else {
-                start(j, st, &z[a..e], &mut xs[a..e], &mut vs[a..e])?
-            };
-            let q = a + n_run.min(e - a);
-            sl.cur = j;
-            sl.end = e as isize;
-            sl.skip = q as isize;
-            if st.phase >= 2.0 && q < e {
-                sl.running = true;
-                sl.inj = q as isize;
-                // Two separate loads: each is forwarded from the start-up's
-                // store (one 16-byte load of both would wait until the
-                // stores, queued behind the start-up's output stores, reach
-                // the cache).
-                // SAFETY: reads of two f64 fields of a live state.
-                unsafe {
-                    sl.inj_x = std::ptr::read_volatile(&st.x[0]);
-                    sl.inj_v = std::ptr::read_volatile(&st.x[1]);
-                }
-                sl.inj_c = if shared { c0 } else { konst(j) };
-            } else {
-                sl.running = false;
-                sl.inj = isize::MAX;
-            }
             }
         }};
     }
@@ -330,7 +353,15 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     let mut starts = Starts {
         s0: [0; 16],
         s1: [0; 16],
-        v0: _mm512_set1_pd(if vinit == Some(Init::First) { 0.0 } else { f64::NAN }),
+        v0: _mm512_set1_pd(match vstart {
+            Some(VecStart::Rows(Init::First)) => 0.0,
+            Some(VecStart::Tracks(Init::First)) => -0.0,
+            _ => f64::NAN,
+        }),
+        signed: match vstart {
+            Some(VecStart::Tracks(Init::First)) => Some(_mm512_setzero_pd()),
+            _ => None,
+        },
     };
     let mut xbuf = [[zero; W]; 2];
     let mut vbuf = [[zero; W]; 2];
@@ -719,7 +750,11 @@ unsafe fn compute<T: IoFloat>(
                     k.xv = _mm512_mask_blend_pd(m0 | m1, k.xv, zj);
                     k.vv = _mm512_mask_blend_pd(m1, k.vv, vel);
                     if let Some(st) = starts.as_deref() {
-                        k.vv = _mm512_mask_blend_pd(m0, k.vv, st.v0);
+                        let v0 = match st.signed {
+                            Some(zero) => _mm512_add_pd(st.v0, _mm512_mul_pd(zero, zj)),
+                            None => st.v0,
+                        };
+                        k.vv = _mm512_mask_blend_pd(m0, k.vv, v0);
                     }
                 }
                 xo[j] = k.xv;

@@ -715,7 +715,10 @@ fn flat_tracks<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize,
             )
         };
         let zc = &zs[base..off[j1]];
-        let r = crate::filter::ab_tracks_flat(g, &mut start, &loc, zc, xs, vs, st, split_par)?;
+        // Fresh tracks whose first samples are valid start in the kernel's
+        // vector steps, with `track_tv`'s arithmetic.
+        let vs0 = Some(crate::filter::FlatVecStart::Tracks(opts.init));
+        let r = crate::filter::ab_tracks_flat(g, &mut start, &loc, zc, xs, vs, st, split_par, vs0)?;
         Some(r.and_then(|()| {
             for j in 0..j1 - j0 {
                 let (a, e) = (loc[j], loc[j + 1]);

@@ -788,7 +788,7 @@ fn flat_or_rows_case<T: IoFloat>(
                 &mut sb,
                 nt,
                 None,
-                Some(step_init),
+                Some(flat::VecStart::Rows(step_init)),
             )
         }
         .unwrap();

@@ -431,3 +431,135 @@ fn kin3_smoother_errors_name_the_track_and_sample() {
     assert_eq!(x[4], 4.0);
     assert!(x[1] != 1.5 && x[1].is_finite());
 }
+
+/// Without timestamps, alpha-beta tracks run in the flat vector kernel
+/// (AVX-512 or AVX2), fresh tracks with valid first samples starting in its
+/// vector steps: each track must get the bits of the scalar track code
+/// (`track_tv`) run on it alone, both inits (the first-sample start's rate
+/// `-0.0 + 0 * z`: `-0.0` after a negative first sample, also a `-0.0`
+/// sample), NaN-led, all-NaN and tiny tracks, given states, shared and
+/// per-track gains, `f64` and `f32`.
+fn flat_case<T: IoFloat>(init: Init, shared: bool, given: bool) {
+    let lens: Vec<usize> = (0..700)
+        .map(|i| [0, 1, 2, 3, 5, 8, 9, 15, 16, 17, 40, 100, 7][(i * 7) % 13])
+        .chain([1000, 0, 2, 257, 300])
+        .collect();
+    let mut off = vec![0i64];
+    for &l in &lens {
+        off.push(off.last().copied().unwrap_or(0) + l as i64);
+    }
+    let total = *off.last().unwrap_or(&0) as usize;
+    let z: Vec<T> = (0..total)
+        .map(|i| {
+            let h = (i.wrapping_mul(2654435761) >> 7) % 1000;
+            let v = if h < 60 || i % 211 > 195 {
+                f64::NAN
+            } else if h % 97 == 0 {
+                -0.0
+            } else {
+                (h as f64 - 500.0) * 0.013 + (i % 37) as f64 * 0.7 - 12.0
+            };
+            T::from_f64(v)
+        })
+        .collect();
+    let n_tracks = lens.len();
+    let laws: Vec<AbFixed> = (0..if shared { 1 } else { n_tracks })
+        .map(|j| AbFixed {
+            alpha: 0.2 + 0.6 * ((j * 7) % 11) as f64 / 11.0,
+            beta: 0.01 + 0.1 * ((j * 3) % 5) as f64 / 5.0,
+        })
+        .collect();
+    let f = TrackFilter {
+        laws: &laws,
+        h: [[1.0, 0.0]],
+        h_pinv: [[1.0], [0.0]],
+    };
+    let o = Options {
+        init,
+        t_nominal: 0.25,
+        max_gap: None,
+        drop_duplicates: false,
+    };
+    let state0 = |j: usize| {
+        let mut s = TrackState::default();
+        if given && j.is_multiple_of(3) {
+            s.x[0] = j as f64 * 0.5;
+            s.x[1] = -0.25;
+            s.phase = 2.0;
+        }
+        s
+    };
+    let mut st: Vec<TrackState> = (0..n_tracks).map(state0).collect();
+    let mut counts = vec![[0i64; 2]; n_tracks];
+    let mut out = vec![T::from_f64(-7.0); 2 * total];
+    filter_tracks(
+        &f,
+        &o,
+        &off,
+        &Samples::flat(&z, 1).unwrap(),
+        None,
+        &mut st,
+        &mut out,
+        None,
+        &mut counts,
+        false,
+        &NoPost,
+    )
+    .unwrap();
+    let (xs, vs) = out.split_at(total);
+    for j in 0..n_tracks {
+        let (a, b) = (off[j] as usize, off[j + 1] as usize);
+        let mut law = laws[if shared { 0 } else { j }];
+        let mut s = state0(j);
+        let mut x = vec![T::from_f64(-7.0); b - a];
+        let mut v = vec![T::from_f64(-7.0); b - a];
+        let mut c = [0i64; 2];
+        let mut to = TrackOut {
+            states: [&mut x[..], &mut v[..]],
+            resid: None,
+        };
+        let zf = |k: usize| [z[a + k].to_f64()];
+        track_tv::<T, AbFixed, 2, 1, true>(
+            &mut law,
+            &f.h,
+            &f.h_pinv,
+            &o,
+            &mut s,
+            b - a,
+            zf,
+            None::<&fn(usize) -> f64>,
+            &mut to,
+            &mut c,
+            j,
+            0,
+            false,
+        )
+        .unwrap();
+        let bits = |p: &[T], q: &[T]| {
+            p.iter()
+                .zip(q)
+                .position(|(p, q)| p.to_f64().to_bits() != q.to_f64().to_bits())
+        };
+        let what = format!(
+            "track {j} (len {}) {init:?} shared {shared} given {given}",
+            b - a
+        );
+        assert_eq!(bits(&xs[a..b], &x), None, "x of {what}");
+        assert_eq!(bits(&vs[a..b], &v), None, "v of {what}");
+        let (p, q) = (&st[j], &s);
+        let same = (0..2).all(|i| p.x[i].to_bits() == q.x[i].to_bits())
+            && p.phase.to_bits() == q.phase.to_bits()
+            && p.since.to_bits() == q.since.to_bits();
+        assert!(same, "state of {what}: {p:?} vs {q:?}");
+    }
+}
+
+#[test]
+fn tracks_without_times_equal_the_scalar_track_code() {
+    for init in [Init::TwoPoint, Init::First] {
+        for (shared, given) in [(true, false), (false, false), (true, true)] {
+            flat_case::<f64>(init, shared, given);
+            flat_case::<f32>(init, shared, given);
+        }
+    }
+}
