@@ -245,11 +245,10 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             }
             let st = &mut states[j];
             let sl: &mut Slot = $s;
-            // The usual start (a fresh track, shared gains, its first one
-            // or two samples valid) runs in the vector steps: the same
-            // values as `ab_start`'s fast path.
-            let vstart = shared
-                && st.phase == 0.0
+            // The usual start (a fresh track, its first one or two samples
+            // valid) runs in the vector steps: the same values as the
+            // scalar start-up (`VecStart`).
+            let vstart = st.phase == 0.0
                 && match vinit {
                     Some(Init::TwoPoint) => {
                         e - a >= 2 && !z[a].to_f64().is_nan() && !z[a + 1].to_f64().is_nan()
@@ -271,6 +270,10 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 } else {
                     isize::MAX
                 };
+                if !shared {
+                    // Its constants enter the slot at its first sample.
+                    sl.inj_c = konst(j);
+                }
             } else {
                 // The start-up writes its outputs into the slot's stage, from
                 // which the blocks take them, so that the lines at the track
@@ -535,7 +538,21 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 }
                 // Pending vector start-up steps in this block.
                 if s.vs0 < bend {
-                    starts.s0[(s.vs0 - pos) as usize] |= 1 << l;
+                    let p = (s.vs0 - pos) as usize;
+                    if !shared {
+                        // The track's constants (and a state the start
+                        // replaces) before its first step.
+                        inject.mask[p] |= 1 << l;
+                        inject.x[p][l] = 0.0;
+                        inject.v[p][l] = 0.0;
+                        let c = &s.inj_c;
+                        inject.c[p][0][l] = c.t;
+                        inject.c[p][1][l] = c.alpha;
+                        inject.c[p][2][l] = c.one_minus_alpha;
+                        inject.c[p][3][l] = c.g2;
+                        any_inj = true;
+                    }
+                    starts.s0[p] |= 1 << l;
                     s.vs0 = isize::MAX;
                     any_vs = true;
                 }
