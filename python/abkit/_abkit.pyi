@@ -151,7 +151,7 @@ def filter_tracks(
     smoother: str | None = None,  # None, "const" (Phi | A rows), "ab" (rows of 5), "kin3" (rows of 10)
     smoother_params: _F64 | None = None,
     lag: int | None = None,
-) -> None: ...
+) -> bool: ...  # whether some started track's final state is not finite
 def kalman_gain_sequence(
     n: int, m: int, phi: _F64, h: _F64, q: _F64, r: _F64, p0: _F64, steps: int
 ) -> tuple[_F64, _F64, _F64]: ...

@@ -246,23 +246,23 @@ def run_tracks(
         t2 = t_arr.reshape(z3.shape[:2]) if t_arr.ndim == 1 else t_arr
         t2 = _aligned(t2)
     law, params, tn = _kernel_law(f, t is not None, "t and offsets need")
+    # Fresh states (state=None) have no timestamps (NaN T_LAST, T_HELD).
     packed, init_mode = f._initial_state(init, state, n_tracks)
-    if state is None:
-        packed[:, T_LAST] = np.nan
-        packed[:, T_HELD] = np.nan
     zarr = z
     shape = sample_shape
     o = f._out(out, zarr, z3, shape, threads)
     out2 = o.reshape(f.n, n_total)
     res2 = np.empty((n_total, m), dtype=z3.dtype) if return_residuals else None
     counts = np.zeros((n_tracks, 2), dtype=np.int64)
-    _abkit.filter_tracks(
+    suspect = _abkit.filter_tracks(
         z3, t2, off, f.n, m, law, np.ascontiguousarray(params, dtype=np.float64).reshape(-1),
         np.ascontiguousarray(f._h[0]).reshape(-1), np.ascontiguousarray(f._hpinv[0]).reshape(-1),
         float(tn[0]), init_mode, gap, drop, packed, out2, counts, res2,
         None if threads is None else int(threads), smoother, smoother_params, lag,
     )
-    if gap is None:
+    if gap is None and suspect:
+        # Some started track's final state is not finite (the kernel's
+        # check, O(n_tracks) in Rust): find the Inf or the overflow.
         check_no_inf_after(f, z3, off, packed)
     residuals = None
     if res2 is not None:

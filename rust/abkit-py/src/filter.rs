@@ -171,7 +171,7 @@ fn run_typed<'py, T: IoFloat + Element>(
 
 /// Whether a started track's state is not finite (a held first position,
 /// or any of the `n` states of a running track).
-fn not_finite(states: &[TrackState], n: usize) -> bool {
+pub(crate) fn not_finite(states: &[TrackState], n: usize) -> bool {
     let n = n.min(abkit_core::filter::MAX_STATES);
     states.iter().any(|s| {
         (s.phase == 1.0 && !s.x[0].is_finite())

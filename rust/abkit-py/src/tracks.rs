@@ -162,7 +162,7 @@ fn run_typed<
     counts: &Bound<'py, PyArray2<i64>>,
     threads: Option<usize>,
     post: &P,
-) -> PyResult<()> {
+) -> PyResult<bool> {
     if h.len() != N * M || h_pinv.len() != N * M {
         return Err(PyValueError::new_err("H has the wrong size"));
     }
@@ -211,6 +211,7 @@ fn run_typed<
                     par,
                     post,
                 )
+                .map(|()| crate::filter::not_finite(states, N))
             })
         })
     })??;
@@ -242,7 +243,8 @@ pub(crate) fn constant_laws<const N: usize, const M: usize>(
 /// `smoother`: None, "const" (rows `Phi | A`), "ab" (alpha-beta laws, rows
 /// of 5) or "kin3" (3-state kinematic laws, rows of 10; see below);
 /// `out` `(n, N)`, `resid` `(N, m)`, `state` `(n_tracks, STATE_WIDTH)`,
-/// `counts` int64 `(n_tracks, 2)`.
+/// `counts` int64 `(n_tracks, 2)`. Returns whether some started track's
+/// final state is not finite (the caller then finds which).
 #[pyfunction]
 #[pyo3(name = "filter_tracks", signature = (z, t, offsets, n, m, law, params, h, h_pinv, t_nominal, init, max_gap, drop_duplicates, state, out, counts, resid=None, threads=None, smoother=None, smoother_params=None, lag=None))]
 #[allow(clippy::too_many_arguments)]
@@ -269,7 +271,7 @@ pub(crate) fn filter_tracks_py<'py>(
     smoother: Option<&str>,
     smoother_params: Option<PyReadonlyArray1<'py, f64>>,
     lag: Option<usize>,
-) -> PyResult<()> {
+) -> PyResult<bool> {
     let sp: &[f64] = match &smoother_params {
         Some(a) => a.as_slice()?,
         None => &[],
