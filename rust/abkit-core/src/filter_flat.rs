@@ -248,15 +248,19 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             // The usual start (a fresh track, its first one or two samples
             // valid) runs in the vector steps: the same values as the
             // scalar start-up (`VecStart`).
-            let vstart = st.phase == 0.0
-                && match vinit {
-                    Some(Init::TwoPoint) => {
-                        e - a >= 2 && !z[a].to_f64().is_nan() && !z[a + 1].to_f64().is_nan()
-                    }
-                    Some(Init::First) => e > a && !z[a].to_f64().is_nan(),
+            // `ab_start` (`VecStart::Rows`) has its `+0.0` rate only on its
+            // fast path (first two samples valid; otherwise its general
+            // start-up gives `-0.0 + 0 z`), so rows need two valid samples
+            // for either init; the track code (`Tracks`) starts
+            // `Init::First` alike whatever follows.
+            let two_valid = || e - a >= 2 && !z[a].to_f64().is_nan() && !z[a + 1].to_f64().is_nan();
+            let in_vector = st.phase == 0.0
+                && match vstart {
+                    Some(VecStart::Rows(_)) | Some(VecStart::Tracks(Init::TwoPoint)) => two_valid(),
+                    Some(VecStart::Tracks(Init::First)) => e > a && !z[a].to_f64().is_nan(),
                     None => false,
                 };
-            if vstart {
+            if in_vector {
                 st.phase = 2.0;
                 st.since = 0.0;
                 sl.cur = j;

@@ -678,11 +678,15 @@ fn flat_or_rows_case<T: IoFloat>(
     let zf: Vec<f64> = (0..total)
         .map(|i| {
             let h = (i.wrapping_mul(2654435761) >> 7) % 1000;
-            // random NaNs, NaN runs (NaN-led and all-NaN short tracks)
+            // random NaNs, NaN runs (NaN-led and all-NaN short tracks);
+            // negative values and -0.0 (the signs of zero rates at a
+            // first-sample start)
             if nan && (h < 80 || (i % 211 > 190)) {
                 f64::NAN
+            } else if h % 97 == 0 {
+                -0.0
             } else {
-                h as f64 * 0.013 + (i % 37) as f64 * 0.7
+                h as f64 * 0.013 + (i % 37) as f64 * 0.7 - 12.0
             }
         })
         .collect();
