@@ -57,6 +57,20 @@ struct Inject {
     c: [[[f64; LANES]; 4]; 16],
 }
 
+impl Inject {
+    /// Slot `l` takes the state `(x, v)` and the constants `c` before block
+    /// step `p`.
+    fn set(&mut self, p: usize, l: usize, x: f64, v: f64, c: &AbConst) {
+        self.mask[p] |= 1 << l;
+        self.x[p][l] = x;
+        self.v[p][l] = v;
+        self.c[p][0][l] = c.t;
+        self.c[p][1][l] = c.alpha;
+        self.c[p][2][l] = c.one_minus_alpha;
+        self.c[p][3][l] = c.g2;
+    }
+}
+
 /// Where one slot is.
 #[derive(Clone, Copy)]
 pub(super) struct Slot {
@@ -529,14 +543,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 // A pending start of running in this block.
                 if s.inj < bend {
                     let p = (s.inj - pos) as usize;
-                    inject.mask[p] |= 1 << l;
-                    inject.x[p][l] = s.inj_x;
-                    inject.v[p][l] = s.inj_v;
-                    let c = &s.inj_c;
-                    inject.c[p][0][l] = c.t;
-                    inject.c[p][1][l] = c.alpha;
-                    inject.c[p][2][l] = c.one_minus_alpha;
-                    inject.c[p][3][l] = c.g2;
+                    inject.set(p, l, s.inj_x, s.inj_v, &s.inj_c);
                     any_inj = true;
                     s.inj = isize::MAX;
                 }
@@ -546,14 +553,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                     if !shared {
                         // The track's constants (and a state the start
                         // replaces) before its first step.
-                        inject.mask[p] |= 1 << l;
-                        inject.x[p][l] = 0.0;
-                        inject.v[p][l] = 0.0;
-                        let c = &s.inj_c;
-                        inject.c[p][0][l] = c.t;
-                        inject.c[p][1][l] = c.alpha;
-                        inject.c[p][2][l] = c.one_minus_alpha;
-                        inject.c[p][3][l] = c.g2;
+                        inject.set(p, l, 0.0, 0.0, &s.inj_c);
                         any_inj = true;
                     }
                     starts.s0[p] |= 1 << l;
