@@ -41,7 +41,7 @@ const LANES: usize = 8;
 const PREFETCH_BLOCKS: isize = 8;
 /// Samples of a slot's start-up stage (from its current block's first
 /// sample): three lines of `f32`, six of `f64`.
-const STG: usize = 48;
+pub(super) const STG: usize = 48;
 
 /// Samples of one block: one 64-byte line of `T`.
 const fn block_len<T>() -> usize {
@@ -167,6 +167,134 @@ pub(super) fn regions(off: &[usize], target: usize, skip: Option<&[bool]>) -> Ve
 pub(crate) type Start<'s, T> =
     dyn FnMut(usize, &mut TrackState, &[T], &mut [T], &mut [T]) -> Result<usize> + 's;
 
+/// What the flat kernels need to start a track in a slot (shared by
+/// [`ab_flat`] and the generic kernel of `filter_flat_vec`).
+pub(super) struct Starter<'a, 's, T> {
+    pub(super) off: &'a [usize],
+    pub(super) z: &'a [T],
+    pub(super) konst: &'a dyn Fn(usize) -> AbConst,
+    pub(super) shared: bool,
+    /// `konst(0)`, the constants of every track if `shared`.
+    pub(super) c0: AbConst,
+    pub(super) vstart: Option<VecStart>,
+    pub(super) start: &'a mut Start<'s, T>,
+}
+
+impl<T: IoFloat> Starter<'_, '_, T> {
+    /// Start track `j` (at the start of its region or at a boundary) in
+    /// slot `sl`, whose start-up stage is `gx`, `gv` (see `Slot::stg`):
+    /// in the vector steps (`Slot::vs0`) where its start allows, otherwise
+    /// with the scalar start-up, its outputs staged, and the state injected
+    /// at its first running sample (`Slot::inj`).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn track(
+        &mut self,
+        sl: &mut Slot,
+        j: usize,
+        states: &mut [TrackState],
+        xs: &mut [T],
+        vs: &mut [T],
+        gx: &mut [T; STG],
+        gv: &mut [T; STG],
+    ) -> Result<()> {
+        let (off, z) = (self.off, self.z);
+        let (a, e) = (off[j], off[j + 1]);
+        // The slot's next tracks' states: the states are touched once per
+        // track, too sparsely for the hardware prefetcher.
+        if let Some(ahead) = states.get(j + 4) {
+            let p = ahead as *const TrackState;
+            super::prefetch(p);
+            super::prefetch(p.wrapping_byte_add(64));
+        }
+        let st = &mut states[j];
+        // The usual start (a fresh track, its first one or two samples
+        // valid) runs in the vector steps: the same values as the scalar
+        // start-up (`VecStart`).
+        // `ab_start` (`VecStart::Rows`) has its `+0.0` rate only on its fast
+        // path (first two samples valid; otherwise its general start-up
+        // gives `-0.0 + 0 z`), so rows need two valid samples for either
+        // init; the track code (`Tracks`) starts `Init::First` alike
+        // whatever follows.
+        let two_valid = || e - a >= 2 && !z[a].to_f64().is_nan() && !z[a + 1].to_f64().is_nan();
+        let in_vector = st.phase == 0.0
+            && match self.vstart {
+                Some(VecStart::Rows(_)) | Some(VecStart::Tracks(Init::TwoPoint)) => two_valid(),
+                Some(VecStart::Tracks(Init::First)) => e > a && !z[a].to_f64().is_nan(),
+                None => false,
+            };
+        if in_vector {
+            st.phase = 2.0;
+            st.since = 0.0;
+            sl.cur = j;
+            sl.end = e as isize;
+            sl.skip = a as isize;
+            sl.running = true;
+            sl.inj = isize::MAX;
+            sl.vs0 = a as isize;
+            sl.vs1 = if self.vstart.map(VecStart::init) == Some(Init::TwoPoint) {
+                a as isize + 1
+            } else {
+                isize::MAX
+            };
+            if !self.shared {
+                // Its constants enter the slot at its first sample.
+                sl.inj_c = (self.konst)(j);
+            }
+            return Ok(());
+        }
+        // The start-up writes its outputs into the slot's stage, from which
+        // the blocks take them, so that the lines at the track boundaries are
+        // stored whole (streamed): a store of part of a line waits for the
+        // line from memory. A start-up longer than the stage (a track
+        // beginning with many NaN) goes on in the outputs themselves.
+        let start = &mut *self.start;
+        let d = (a as isize - sl.pos) as usize;
+        let n_run = if st.phase >= 2.0 {
+            0
+        } else if d < STG {
+            let l1 = (e - a).min(STG - d);
+            let (sx, sv) = (&mut gx[d..d + l1], &mut gv[d..d + l1]);
+            let r1 = start(j, st, &z[a..a + l1], sx, sv)?.min(l1);
+            if r1 > 0 {
+                sl.stg |= ((1u64 << r1) - 1) << d;
+            }
+            if r1 == l1 && st.phase < 2.0 && a + l1 < e {
+                let b = a + l1;
+                r1 + start(j, st, &z[b..e], &mut xs[b..e], &mut vs[b..e])?
+            } else {
+                r1
+            }
+        } else {
+            start(j, st, &z[a..e], &mut xs[a..e], &mut vs[a..e])?
+        };
+        let q = a + n_run.min(e - a);
+        sl.cur = j;
+        sl.end = e as isize;
+        sl.skip = q as isize;
+        if st.phase >= 2.0 && q < e {
+            sl.running = true;
+            sl.inj = q as isize;
+            // Two separate loads: each is forwarded from the start-up's store
+            // (one 16-byte load of both would wait until the stores, queued
+            // behind the start-up's output stores, reach the cache).
+            // SAFETY: reads of two f64 fields of a live state.
+            unsafe {
+                sl.inj_x = std::ptr::read_volatile(&st.x[0]);
+                sl.inj_v = std::ptr::read_volatile(&st.x[1]);
+            }
+            sl.inj_c = if self.shared {
+                self.c0
+            } else {
+                (self.konst)(j)
+            };
+        } else {
+            sl.running = false;
+            sl.inj = isize::MAX;
+        }
+        Ok(())
+    }
+}
+
 /// Alpha-beta over the tracks `off[j]..off[j+1]` of the flat `z`, `xs`,
 /// `vs` (see the module docs). `konst(j)` gives track `j`'s constants
 /// (`shared`: the same for all); `nt`: non-temporal stores of whole lines.
@@ -189,7 +317,6 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     skip: Option<&[bool]>,
     vstart: Option<VecStart>,
 ) -> Result<()> {
-    let vinit = vstart.map(VecStart::init);
     let n_tracks = states.len();
     let total = off.last().copied().unwrap_or(0);
     if off.len() != n_tracks + 1 || z.len() < total || xs.len() < total || vs.len() < total {
@@ -243,103 +370,19 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     // `i` (bit `i` of `Slot::stg` set when it holds a start-up output).
     let mut stg_x = [[T::from_f64(0.0); STG]; LANES];
     let mut stg_v = [[T::from_f64(0.0); STG]; LANES];
-    // Start track `j` (at the start of its region or at a boundary) in slot
-    // `s` (index `l`); returns the sample at which it runs (`isize::MAX`:
-    // never).
+    let mut cx = Starter {
+        off,
+        z,
+        konst,
+        shared,
+        c0,
+        vstart,
+        start,
+    };
     macro_rules! start_track {
         ($s:expr, $l:expr, $j:expr) => {{
-            let j: usize = $j;
-            let (a, e) = (off[j], off[j + 1]);
-            // The slot's next tracks' states: the states are touched once
-            // per track, too sparsely for the hardware prefetcher.
-            if let Some(ahead) = states.get(j + 4) {
-                let p = ahead as *const TrackState;
-                super::prefetch(p);
-                super::prefetch(p.wrapping_byte_add(64));
-            }
-            let st = &mut states[j];
-            let sl: &mut Slot = $s;
-            // The usual start (a fresh track, its first one or two samples
-            // valid) runs in the vector steps: the same values as the
-            // scalar start-up (`VecStart`).
-            // `ab_start` (`VecStart::Rows`) has its `+0.0` rate only on its
-            // fast path (first two samples valid; otherwise its general
-            // start-up gives `-0.0 + 0 z`), so rows need two valid samples
-            // for either init; the track code (`Tracks`) starts
-            // `Init::First` alike whatever follows.
-            let two_valid = || e - a >= 2 && !z[a].to_f64().is_nan() && !z[a + 1].to_f64().is_nan();
-            let in_vector = st.phase == 0.0
-                && match vstart {
-                    Some(VecStart::Rows(_)) | Some(VecStart::Tracks(Init::TwoPoint)) => two_valid(),
-                    Some(VecStart::Tracks(Init::First)) => e > a && !z[a].to_f64().is_nan(),
-                    None => false,
-                };
-            if in_vector {
-                st.phase = 2.0;
-                st.since = 0.0;
-                sl.cur = j;
-                sl.end = e as isize;
-                sl.skip = a as isize;
-                sl.running = true;
-                sl.inj = isize::MAX;
-                sl.vs0 = a as isize;
-                sl.vs1 = if vinit == Some(Init::TwoPoint) {
-                    a as isize + 1
-                } else {
-                    isize::MAX
-                };
-                if !shared {
-                    // Its constants enter the slot at its first sample.
-                    sl.inj_c = konst(j);
-                }
-            } else {
-                // The start-up writes its outputs into the slot's stage, from
-                // which the blocks take them, so that the lines at the track
-                // boundaries are stored whole (streamed): a store of part of a
-                // line waits for the line from memory. A start-up longer than
-                // the stage (a track beginning with many NaN) goes on in the
-                // outputs themselves.
-                let d = (a as isize - sl.pos) as usize;
-                let n_run = if st.phase >= 2.0 {
-                    0
-                } else if d < STG {
-                    let l1 = (e - a).min(STG - d);
-                    let (gx, gv) = (&mut stg_x[$l][d..d + l1], &mut stg_v[$l][d..d + l1]);
-                    let r1 = start(j, st, &z[a..a + l1], gx, gv)?.min(l1);
-                    if r1 > 0 {
-                        sl.stg |= ((1u64 << r1) - 1) << d;
-                    }
-                    if r1 == l1 && st.phase < 2.0 && a + l1 < e {
-                        let b = a + l1;
-                        r1 + start(j, st, &z[b..e], &mut xs[b..e], &mut vs[b..e])?
-                    } else {
-                        r1
-                    }
-                } else {
-                    start(j, st, &z[a..e], &mut xs[a..e], &mut vs[a..e])?
-                };
-                let q = a + n_run.min(e - a);
-                sl.cur = j;
-                sl.end = e as isize;
-                sl.skip = q as isize;
-                if st.phase >= 2.0 && q < e {
-                    sl.running = true;
-                    sl.inj = q as isize;
-                    // Two separate loads: each is forwarded from the start-up's
-                    // store (one 16-byte load of both would wait until the
-                    // stores, queued behind the start-up's output stores, reach
-                    // the cache).
-                    // SAFETY: reads of two f64 fields of a live state.
-                    unsafe {
-                        sl.inj_x = std::ptr::read_volatile(&st.x[0]);
-                        sl.inj_v = std::ptr::read_volatile(&st.x[1]);
-                    }
-                    sl.inj_c = if shared { c0 } else { konst(j) };
-                } else {
-                    sl.running = false;
-                    sl.inj = isize::MAX;
-                }
-            }
+            let l: usize = $l;
+            cx.track($s, $j, states, xs, vs, &mut stg_x[l], &mut stg_v[l])?
         }};
     }
     // Give slot `l` its next region (or mark it idle).
