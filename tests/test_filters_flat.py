@@ -1,11 +1,13 @@
 """The flat alpha-beta vector kernel (rust/abkit-core/src/filter_flat.rs on
 AVX-512 CPUs, its generic form rust/abkit-core/src/filter_flat_vec.rs with 4
 AVX2 slots on CPUs with AVX2 + FMA only; opt-in ABKIT_FLAT_AVX512=1 runs the
-generic form with 8 AVX-512 slots):
+generic form with 8 AVX-512 slots; ABKIT_FLAT_AVX2=1 the AVX2 form on
+AVX-512 CPUs too):
 short rows (fewer than 256 samples) of a batch, and ragged batches without
 timestamps, run as one flat sequence of back-to-back tracks whose vector
-slots cross track boundaries (scalar start-ups, masked stores, state
-replacement at the first running sample, final states read at the last).
+slots cross track boundaries (fresh tracks started in the vector steps,
+other start-ups scalar into a per-slot stage, state replacement at the
+first running sample, final states read at the last).
 
 It runs only without residuals, so ``run(z)`` (flat kernel) is compared
 with ``run(z, return_residuals=True)`` (the scalar per-track loop): the
@@ -221,6 +223,10 @@ def test_ragged_inf_named_after_the_run():
         f.run(z, offsets=off)
 
 
+# The kernel switches (read once per process): tests set them in children.
+_SWITCHES = ("ABKIT_DISABLE_SIMD", "ABKIT_FLAT_AVX512", "ABKIT_FLAT_AVX2", "ABKIT_SHORT_ROWS_FLAT")
+
+
 def test_flat_kernel_equals_scalar_track_kernel_bitwise(tmp_path):
     # The same short rows and ragged batch in a process with the vector
     # kernels switched off (ABKIT_DISABLE_SIMD=1: scalar lanes and the
@@ -249,18 +255,30 @@ for k, dt in enumerate([np.float64, np.float32]):
         res[f"state{k}{init}"] = r.state._packed
 np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
 """
-    for tag, extra in (("on", {}), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
+    # Also the AVX2 flat kernel (ABKIT_FLAT_AVX2=1, the flat paths of an
+    # AVX2-only CPU, on AVX-512 CPUs too) and the generic kernel at 8 lanes
+    # (ABKIT_FLAT_AVX512=1), short rows forced into the flat kernels.
+    runs = (
+        ("on", {}),
+        ("avx2", {"ABKIT_FLAT_AVX2": "1", "ABKIT_SHORT_ROWS_FLAT": "1"}),
+        ("gen", {"ABKIT_FLAT_AVX512": "1", "ABKIT_SHORT_ROWS_FLAT": "1"}),
+        ("off", {"ABKIT_DISABLE_SIMD": "1"}),
+    )
+    for tag, extra in runs:
         e = dict(os.environ)
-        e.pop("ABKIT_DISABLE_SIMD", None)
+        for k in _SWITCHES:
+            e.pop(k, None)
         e.update(extra)
         subprocess.run([sys.executable, "-c", code, str(tmp_path), tag], check=True, env=e)
-    on, off = np.load(tmp_path / "on.npz"), np.load(tmp_path / "off.npz")
-    for k in on.files:
-        a, b = on[k], off[k]
-        # bit for bit (signed zeros too), NaN where NaN
-        assert np.array_equal(np.isnan(a), np.isnan(b)), k
-        ok = ~np.isnan(a)
-        assert np.array_equal(a[ok].view(np.uint8), b[ok].view(np.uint8)), k
+    off = np.load(tmp_path / "off.npz")
+    for tag, _ in runs[:-1]:
+        on = np.load(tmp_path / f"{tag}.npz")
+        for k in on.files:
+            a, b = on[k], off[k]
+            # bit for bit (signed zeros too), NaN where NaN
+            assert np.array_equal(np.isnan(a), np.isnan(b)), (tag, k)
+            ok = ~np.isnan(a)
+            assert np.array_equal(a[ok].view(np.uint8), b[ok].view(np.uint8)), (tag, k)
 
 
 # ---------------------------------------------------------------------------
@@ -406,7 +424,8 @@ np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
 def test_flat_kernels_equal_scalar_lanes_bitwise_in_child_processes(tmp_path):
     # Default (the flat kernel of this CPU), the generic kernel's AVX-512
     # instance where the CPU has AVX-512 (opt-in ABKIT_FLAT_AVX512=1; on
-    # other CPUs the variable changes nothing) and the scalar lanes and
+    # other CPUs the variable changes nothing), the AVX2 flat kernel
+    # (ABKIT_FLAT_AVX2=1, on AVX-512 CPUs too) and the scalar lanes and
     # track kernel (ABKIT_DISABLE_SIMD=1): the same bits. Short rows run in
     # the AVX2 short-row lanes by default on AVX2-only CPUs (small batches)
     # and in the flat kernel with ABKIT_SHORT_ROWS_FLAT=1: the same bits.
@@ -414,17 +433,18 @@ def test_flat_kernels_equal_scalar_lanes_bitwise_in_child_processes(tmp_path):
         ("on", {}),
         ("gen", {"ABKIT_FLAT_AVX512": "1"}),
         ("flat", {"ABKIT_SHORT_ROWS_FLAT": "1"}),
+        ("avx2", {"ABKIT_FLAT_AVX2": "1", "ABKIT_SHORT_ROWS_FLAT": "1"}),
         ("off", {"ABKIT_DISABLE_SIMD": "1"}),
     )
     for tag, extra in runs:
         e = dict(os.environ)
-        for k in ("ABKIT_DISABLE_SIMD", "ABKIT_FLAT_AVX512", "ABKIT_SHORT_ROWS_FLAT"):
+        for k in _SWITCHES:
             e.pop(k, None)
         e.update(extra)
         subprocess.run([sys.executable, "-c", _CHILD, str(tmp_path), tag], check=True, env=e)
-    on, gen, flat, off = (np.load(tmp_path / f"{t}.npz") for t in ("on", "gen", "flat", "off"))
-    assert len(on.files) > 100
-    for k in on.files:
-        assert np.array_equal(on[k], off[k], equal_nan=True), k
-        assert np.array_equal(gen[k], off[k], equal_nan=True), k
-        assert np.array_equal(flat[k], off[k], equal_nan=True), k
+    off = np.load(tmp_path / "off.npz")
+    for tag, _ in runs[:-1]:
+        on = np.load(tmp_path / f"{tag}.npz")
+        assert len(on.files) > 100
+        for k in on.files:
+            assert np.array_equal(on[k], off[k], equal_nan=True), (tag, k)

@@ -2324,15 +2324,18 @@ enum FlatKernel {
 }
 
 /// The flat kernel of this CPU, `None` without one (or with
-/// `ABKIT_DISABLE_SIMD`). Checked once.
+/// `ABKIT_DISABLE_SIMD`); `ABKIT_FLAT_AVX2` set to anything but `0` takes
+/// the AVX2 kernel on AVX-512 CPUs too (for tests and comparisons: the
+/// flat paths of an AVX2-only CPU). Checked once.
 #[cfg(target_arch = "x86_64")]
 fn flat_kernel() -> Option<FlatKernel> {
     static K: std::sync::OnceLock<Option<FlatKernel>> = std::sync::OnceLock::new();
     *K.get_or_init(|| {
-        let opt_in = std::env::var_os("ABKIT_FLAT_AVX512").is_some_and(|v| v != "0");
+        let on = |k: &str| std::env::var_os(k).is_some_and(|v| v != "0");
+        let opt_in = on("ABKIT_FLAT_AVX512");
         if !uses_fma() {
             None
-        } else if simd::available() {
+        } else if simd::available() && !on("ABKIT_FLAT_AVX2") {
             Some(if opt_in {
                 FlatKernel::Avx512Generic
             } else {
@@ -2373,12 +2376,12 @@ unsafe fn run_flat<T: IoFloat>(
             FlatKernel::Avx512 => flat::ab_flat(
                 konst, shared, start, off, z, xs, vs, states, nt, skip, vstart,
             ),
-            FlatKernel::Avx512Generic => {
-                flatv::ab_flat_avx512(konst, shared, start, off, z, xs, vs, states, nt, skip)
-            }
-            FlatKernel::Avx2 => {
-                flatv::ab_flat_avx2(konst, shared, start, off, z, xs, vs, states, nt, skip)
-            }
+            FlatKernel::Avx512Generic => flatv::ab_flat_avx512(
+                konst, shared, start, off, z, xs, vs, states, nt, skip, vstart,
+            ),
+            FlatKernel::Avx2 => flatv::ab_flat_avx2(
+                konst, shared, start, off, z, xs, vs, states, nt, skip, vstart,
+            ),
         }
     }
 }

@@ -14,29 +14,36 @@
 //!   [`super::avx2::group_block`] with the slot states held in registers
 //!   across the blocks (+5 % `f64`, +10-20 % `f32` on Zen 3; the same bits).
 //! - AVX-512F + FMA ([`ab_flat_avx512`]): `W = 8`, one register; only with
-//!   `ABKIT_FLAT_AVX512=1` (not yet run on an AVX-512 machine; the default
-//!   there stays the hand-written [`super::flat`]).
+//!   `ABKIT_FLAT_AVX512=1` (the default on AVX-512 CPUs stays the
+//!   hand-written [`super::flat`]). `ABKIT_FLAT_AVX2=1` takes the AVX2
+//!   instance on AVX-512 CPUs too (tests and comparisons).
 //!
 //! The structure is that of [`super::flat`] (see its module docs): a block
 //! is one 64-byte line of `T` per slot (8 `f64` or 16 `f32` samples), run as
 //! sub-blocks of `W` samples (per register: `W` loads, a `W x W`
 //! transpose, `W` vector steps, transposes back); blocks in which every
 //! slot has only running samples run without bookkeeping and store whole
-//! lines (non-temporal for large outputs; AVX2: `f64` only); at a track boundary the new
-//! track's start-up runs scalar (`start`), the block's stores skip its
-//! outputs (scalar stores of the kept samples) and the slot's state (and
-//! per-track gains) are replaced by blends before its first running step;
-//! a track's final state is read from the block rows at its last sample.
+//! lines (non-temporal for large outputs; AVX2: `f64` only). At a track
+//! boundary the new track starts as in [`super::flat`]
+//! ([`super::flat::Starter`]): a fresh track whose first samples are valid
+//! in the vector steps (per-step slot masks: `x = z` and the first-sample
+//! rate at its first sample, `x = z, v = (z - z0) / T` at its second), any
+//! other start-up scalar, its outputs written into the slot's stage and
+//! stored with the block, the slot's state (and per-track gains) replaced
+//! by blends before its first running step; a track's final state is read
+//! from the block rows at its last sample. So the lines at the boundaries
+//! are stored whole too.
 //!
 //! Every running sample is the scalar `ab_step::<true>` (the same fused
-//! operations in the same order), so each track is bit-identical to the
-//! scalar lanes and to the track run alone, whatever its slot or region.
+//! operations in the same order) and every start the scalar start-up's
+//! arithmetic, so each track is bit-identical to the scalar lanes and to the
+//! track run alone, whatever its slot or region.
 
 use std::arch::x86_64::*;
 
-use super::flat::{regions, Slot, Start};
+use super::flat::{regions, Slot, Start, Starter, VecStart, STG};
 use super::simd::is_f64;
-use super::{avx2, AbConst, IoFloat, TrackState};
+use super::{avx2, AbConst, Init, IoFloat, TrackState};
 use crate::ragged_simd::{Vd, V4, V8};
 use crate::Result;
 
@@ -60,6 +67,35 @@ struct Inject<const L: usize> {
     x: [[f64; L]; MAXB],
     v: [[f64; L]; MAXB],
     c: [[[f64; L]; 4]; MAXB],
+}
+
+impl<const L: usize> Inject<L> {
+    /// Slot `l` takes the state `(x, v)` and the constants `c` before block
+    /// step `p`.
+    fn set(&mut self, p: usize, l: usize, x: f64, v: f64, c: &AbConst) {
+        self.mask[p] |= 1 << l;
+        self.steps |= 1 << p;
+        self.x[p][l] = x;
+        self.v[p][l] = v;
+        self.c[p][0][l] = c.t;
+        self.c[p][1][l] = c.alpha;
+        self.c[p][2][l] = c.one_minus_alpha;
+        self.c[p][3][l] = c.g2;
+    }
+}
+
+/// Per-step slot masks of the vector start-ups in a block (as
+/// `flat::Starts`): bit `l` of `s0[p]` for a slot whose track starts at
+/// step `p`, of `s1[p]` at its second sample (two-point start); `v0`: the
+/// velocity at the first sample (`Init::First`: `v0 + signed * z`;
+/// two-point: NaN).
+struct Starts<V> {
+    /// Bit `p`: `s0[p] | s1[p] != 0`.
+    steps: u32,
+    s0: [u32; MAXB],
+    s1: [u32; MAXB],
+    v0: V,
+    signed: Option<V>,
 }
 
 /// The running states and constants of the slots, per register.
@@ -94,6 +130,7 @@ pub(super) unsafe fn ab_flat_avx2<T: IoFloat>(
     states: &mut [TrackState],
     nt: bool,
     skip: Option<&[bool]>,
+    vstart: Option<VecStart>,
 ) -> Result<()> {
     // Non-temporal stores in f64 only: in f32 (16-sample blocks, a track
     // boundary in every few lines) regular stores measured 1.1-2x faster on
@@ -101,7 +138,9 @@ pub(super) unsafe fn ab_flat_avx2<T: IoFloat>(
     let nt = nt && is_f64::<T>();
     // SAFETY: forwarded (AVX2 and FMA available, T is f32 or f64).
     unsafe {
-        kernel::<V4, T, 4, 1, 4, true>(konst, shared, start, off, z, xs, vs, states, nt, skip)
+        kernel::<V4, T, 4, 1, 4, true>(
+            konst, shared, start, off, z, xs, vs, states, nt, skip, vstart,
+        )
     }
 }
 
@@ -123,10 +162,13 @@ pub(super) unsafe fn ab_flat_avx512<T: IoFloat>(
     states: &mut [TrackState],
     nt: bool,
     skip: Option<&[bool]>,
+    vstart: Option<VecStart>,
 ) -> Result<()> {
     // SAFETY: forwarded (AVX-512F and FMA available, T is f32 or f64).
     unsafe {
-        kernel::<V8, T, 8, 1, 8, false>(konst, shared, start, off, z, xs, vs, states, nt, skip)
+        kernel::<V8, T, 8, 1, 8, false>(
+            konst, shared, start, off, z, xs, vs, states, nt, skip, vstart,
+        )
     }
 }
 
@@ -155,6 +197,7 @@ unsafe fn kernel<
     states: &mut [TrackState],
     nt: bool,
     skip: Option<&[bool]>,
+    vstart: Option<VecStart>,
 ) -> Result<()> {
     const { assert!(L == R * W && (W == 4 || W == 8) && L <= 32) };
     const { assert!(!FAST4 || (W == 4 && R == 1 && L == 4)) };
@@ -204,48 +247,26 @@ unsafe fn kernel<
         c: [[[0.0; L]; 4]; MAXB],
     };
 
+    // Start-up stages, one per slot (see `flat`): sample `pos + i` of the
+    // slot at index `i` (bit `i` of `Slot::stg` set when it holds a start-up
+    // output).
+    let mut stg_x = [[T::from_f64(0.0); STG]; L];
+    let mut stg_v = [[T::from_f64(0.0); STG]; L];
+    let mut cx = Starter {
+        off,
+        z,
+        konst,
+        shared,
+        c0,
+        vstart,
+        start,
+    };
     // Start track `j` (at the start of its region or at a boundary) in slot
-    // `s`.
+    // `l`.
     macro_rules! start_track {
-        ($s:expr, $j:expr) => {{
-            let j: usize = $j;
-            let (a, e) = (off[j], off[j + 1]);
-            // The slot's next tracks' states and start-up outputs: touched
-            // once per track, too sparsely for the hardware prefetcher.
-            if let Some(ahead) = states.get(j + 4) {
-                let p = ahead as *const TrackState;
-                super::prefetch(p);
-                super::prefetch(p.wrapping_byte_add(64));
-                let g = off[j + 4];
-                _mm_prefetch::<_MM_HINT_ET0>(xs.as_ptr().wrapping_add(g) as *const i8);
-                _mm_prefetch::<_MM_HINT_ET0>(vs.as_ptr().wrapping_add(g) as *const i8);
-            }
-            let st = &mut states[j];
-            let n_run = if st.phase >= 2.0 {
-                0
-            } else {
-                start(j, st, &z[a..e], &mut xs[a..e], &mut vs[a..e])?
-            };
-            let q = a + n_run.min(e - a);
-            let sl: &mut Slot = $s;
-            sl.cur = j;
-            sl.end = e as isize;
-            sl.skip = q as isize;
-            if st.phase >= 2.0 && q < e {
-                sl.running = true;
-                sl.inj = q as isize;
-                // Two separate loads, each forwarded from the start-up's
-                // store (see `flat`).
-                // SAFETY: reads of two f64 fields of a live state.
-                unsafe {
-                    sl.inj_x = std::ptr::read_volatile(&st.x[0]);
-                    sl.inj_v = std::ptr::read_volatile(&st.x[1]);
-                }
-                sl.inj_c = if shared { c0 } else { konst(j) };
-            } else {
-                sl.running = false;
-                sl.inj = isize::MAX;
-            }
+        ($s:expr, $l:expr, $j:expr) => {{
+            let l: usize = $l;
+            cx.track($s, $j, states, xs, vs, &mut stg_x[l], &mut stg_v[l])?
         }};
     }
     // Give slot `l` its next region (or mark it idle).
@@ -258,7 +279,7 @@ unsafe fn kernel<
                 slots[l].busy = true;
                 slots[l].region_end = j1;
                 slots[l].pos = align_down(off[j0] as isize);
-                start_track!(&mut slots[l], j0);
+                start_track!(&mut slots[l], l, j0);
             } else {
                 slots[l].busy = false;
             }
@@ -282,6 +303,23 @@ unsafe fn kernel<
     let mut xbuf: Buf<V, W, R> = [[[zero; W]; R]; MAXH];
     let mut vbuf: Buf<V, W, R> = [[[zero; W]; R]; MAXH];
     let mut caps: Vec<(usize, usize, usize)> = Vec::with_capacity(4 * L);
+    // SAFETY: the CPU has V's features (caller).
+    let mut starts = Starts::<V> {
+        steps: 0,
+        s0: [0; MAXB],
+        s1: [0; MAXB],
+        v0: unsafe {
+            V::splat(match vstart {
+                Some(VecStart::Rows(Init::First)) => 0.0,
+                Some(VecStart::Tracks(Init::First)) => -0.0,
+                _ => f64::NAN,
+            })
+        },
+        signed: match vstart {
+            Some(VecStart::Tracks(Init::First)) => Some(zero),
+            _ => None,
+        },
+    };
     let mut tmp = [[T::from_f64(0.0); MAXB]; L];
     // Line staging of the AVX2 fast blocks (`FAST4`).
     let mut stage = [[T::from_f64(0.0); 16]; 8];
@@ -302,7 +340,7 @@ unsafe fn kernel<
         // they compute on a line of zeros and store into a scratch line.
         let mut n_fast = isize::MAX;
         for s in slots.iter().filter(|s| s.busy) {
-            let lim = (s.end - 1).min(s.inj);
+            let lim = (s.end - 1).min(s.inj).min(s.vs0).min(s.vs1);
             n_fast = if s.pos >= s.skip && lim >= s.pos + sbi {
                 n_fast.min((lim - s.pos) / sbi)
             } else {
@@ -400,7 +438,9 @@ unsafe fn kernel<
                 };
             }
             // SAFETY: every src[l] has sb readable samples.
-            unsafe { compute::<V, T, W, R, L>(&src, halves, &mut k, None, &mut xbuf, &mut vbuf) };
+            unsafe {
+                compute::<V, T, W, R, L>(&src, halves, &mut k, None, None, &mut xbuf, &mut vbuf)
+            };
             for (l, s) in slots.iter_mut().enumerate() {
                 if !s.busy {
                     continue;
@@ -429,6 +469,7 @@ unsafe fn kernel<
         let mut masks = [0u32; L];
         let mut any_inj = false;
         let mut done = [false; L];
+        starts.steps = 0;
         caps.clear();
         for l in 0..L {
             let s = &mut slots[l];
@@ -451,17 +492,28 @@ unsafe fn kernel<
                 // A pending start of running in this block.
                 if s.inj < bend {
                     let p = (s.inj - pos) as usize;
-                    inject.mask[p] |= 1 << l;
-                    inject.steps |= 1 << p;
-                    inject.x[p][l] = s.inj_x;
-                    inject.v[p][l] = s.inj_v;
-                    let c = &s.inj_c;
-                    inject.c[p][0][l] = c.t;
-                    inject.c[p][1][l] = c.alpha;
-                    inject.c[p][2][l] = c.one_minus_alpha;
-                    inject.c[p][3][l] = c.g2;
+                    inject.set(p, l, s.inj_x, s.inj_v, &s.inj_c);
                     any_inj = true;
                     s.inj = isize::MAX;
+                }
+                // Pending vector start-up steps in this block.
+                if s.vs0 < bend {
+                    let p = (s.vs0 - pos) as usize;
+                    if !shared {
+                        // The track's constants (and a state the start
+                        // replaces) before its first step.
+                        inject.set(p, l, 0.0, 0.0, &s.inj_c);
+                        any_inj = true;
+                    }
+                    starts.s0[p] |= 1 << l;
+                    starts.steps |= 1 << p;
+                    s.vs0 = isize::MAX;
+                }
+                if s.vs1 < bend {
+                    let p = (s.vs1 - pos) as usize;
+                    starts.s1[p] |= 1 << l;
+                    starts.steps |= 1 << p;
+                    s.vs1 = isize::MAX;
                 }
                 if s.end > bend {
                     break;
@@ -476,10 +528,11 @@ unsafe fn kernel<
                     done[l] = true;
                     break;
                 }
-                start_track!(&mut *s, nxt);
+                start_track!(&mut *s, l, nxt);
                 clear(&mut m, off[nxt] as isize, s.skip);
             }
-            masks[l] = m;
+            // Staged start-up outputs are stored with the block.
+            masks[l] = m | (s.stg as u32 & full);
         }
         let mut src = [std::ptr::null::<T>(); L];
         for (l, s) in slots.iter().enumerate() {
@@ -502,6 +555,11 @@ unsafe fn kernel<
             };
         }
         let inj = if any_inj { Some(&mut inject) } else { None };
+        let vst = if starts.steps != 0 {
+            Some(&mut starts)
+        } else {
+            None
+        };
         // SAFETY: every src[l] has sb readable samples.
         unsafe {
             compute::<V, T, W, R, L>(
@@ -509,6 +567,7 @@ unsafe fn kernel<
                 halves,
                 &mut k,
                 inj.map(|i| (i, shared)),
+                vst,
                 &mut xbuf,
                 &mut vbuf,
             )
@@ -518,6 +577,16 @@ unsafe fn kernel<
             let m = masks[l];
             if !s.busy || m == 0 {
                 continue;
+            }
+            let sbits = s.stg as u32 & full;
+            if sbits != 0 {
+                // SAFETY: the CPU has V's features (caller); the stage holds
+                // STG >= 16 samples.
+                unsafe {
+                    merge_stage::<V, T, W, R>(
+                        &mut xbuf, &mut vbuf, l, sbits, halves, &stg_x[l], &stg_v[l],
+                    )
+                };
             }
             let pos = s.pos;
             let inside = pos >= 0 && pos + sbi <= len;
@@ -574,6 +643,14 @@ unsafe fn kernel<
             states[j].x[1] = vr[p % W];
         }
         for l in 0..L {
+            let s = &mut slots[l];
+            if s.stg != 0 {
+                s.stg >>= sb;
+                if s.stg != 0 {
+                    stg_x[l].copy_within(sb.., 0);
+                    stg_v[l].copy_within(sb.., 0);
+                }
+            }
             if done[l] {
                 refill!(l);
             } else if slots[l].busy {
@@ -601,6 +678,7 @@ unsafe fn compute<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L:
     halves: usize,
     k: &mut Kern<V, R>,
     inj: Option<(&mut Inject<L>, bool)>,
+    starts: Option<&mut Starts<V>>,
     xbuf: &mut Buf<V, W, R>,
     vbuf: &mut Buf<V, W, R>,
 ) {
@@ -610,6 +688,7 @@ unsafe fn compute<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L:
         let one = V::splat(1.0);
         let lane_bits = (1u32 << W) - 1;
         let mut inj = inj;
+        let mut starts = starts;
         for h in 0..halves {
             let mut rows: [[V; W]; R] = std::array::from_fn(|r| {
                 std::array::from_fn(|i| V::load(src[r * W + i].add(h * W)))
@@ -644,9 +723,18 @@ unsafe fn compute<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L:
                         inject.steps &= !(1 << p);
                     }
                 }
+                let p = h * W + j;
+                let (m0, m1) = match starts.as_deref_mut() {
+                    Some(st) if st.steps & (1 << p) != 0 => {
+                        st.steps &= !(1 << p);
+                        (std::mem::take(&mut st.s0[p]), std::mem::take(&mut st.s1[p]))
+                    }
+                    _ => (0, 0),
+                };
                 for r in 0..R {
                     // ab_step::<true>.
                     let zj = rows[r][j];
+                    let x0 = k.xv[r];
                     let xpred = k.ct[r].fmadd(k.vv[r], k.xv[r]);
                     let valid = zj.ord();
                     let zz = V::blend(valid, zero, zj);
@@ -655,6 +743,22 @@ unsafe fn compute<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L:
                     let w = g.fmadd(zz, k.vv[r]);
                     k.xv[r] = c1.fmadd(xpred, k.calpha[r].mul(zz));
                     k.vv[r] = g.fnmadd(xpred, w);
+                    let (b0, b1) = ((m0 >> (r * W)) & lane_bits, (m1 >> (r * W)) & lane_bits);
+                    if b0 | b1 != 0 {
+                        // Start-ups: at the first sample x = z (velocity
+                        // `v0`), at the second (two-point) x = z,
+                        // v = (z - z0) / T, as `ab_start` (`flat::compute`).
+                        let vel = zj.sub(x0).div(k.ct[r]);
+                        k.xv[r] = V::blend(V::mask_bits(b0 | b1), k.xv[r], zj);
+                        k.vv[r] = V::blend(V::mask_bits(b1), k.vv[r], vel);
+                        if let Some(st) = starts.as_deref() {
+                            let v0 = match st.signed {
+                                Some(zs) => st.v0.add(zs.mul(zj)),
+                                None => st.v0,
+                            };
+                            k.vv[r] = V::blend(V::mask_bits(b0), k.vv[r], v0);
+                        }
+                    }
                     xbuf[h][r][j] = k.xv[r];
                     vbuf[h][r][j] = k.vv[r];
                 }
@@ -662,6 +766,42 @@ unsafe fn compute<V: Vd<W>, T: IoFloat, const W: usize, const R: usize, const L:
             for r in 0..R {
                 V::transpose(&mut xbuf[h][r]);
                 V::transpose(&mut vbuf[h][r]);
+            }
+        }
+    }
+}
+
+/// Replace slot `l`'s samples `p` with bit `p` of `bits` set in a block's
+/// outputs by the staged start-up outputs `gx[p]`, `gv[p]` (exact: an `f32`
+/// output is narrowed from its `f64` again on store).
+///
+/// # Safety
+/// The CPU has V's features; `T` is `f32` or `f64`; `W * halves <= STG`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn merge_stage<V: Vd<W>, T: 'static, const W: usize, const R: usize>(
+    xbuf: &mut Buf<V, W, R>,
+    vbuf: &mut Buf<V, W, R>,
+    l: usize,
+    bits: u32,
+    halves: usize,
+    gx: &[T; STG],
+    gv: &[T; STG],
+) {
+    let (r, i) = (l / W, l % W);
+    let lane_bits = (1u32 << W) - 1;
+    for h in 0..halves {
+        let hb = (bits >> (h * W)) & lane_bits;
+        if hb != 0 {
+            // SAFETY: forwarded from the caller; h * W + W <= STG.
+            unsafe {
+                let mk = V::mask_bits(hb);
+                let (x, v) = (
+                    V::load(gx.as_ptr().add(h * W)),
+                    V::load(gv.as_ptr().add(h * W)),
+                );
+                xbuf[h][r][i] = V::blend(mk, xbuf[h][r][i], x);
+                vbuf[h][r][i] = V::blend(mk, vbuf[h][r][i], v);
             }
         }
     }

@@ -627,36 +627,26 @@ fn avx512_lanes_are_bit_identical_to_scalar_lanes() {
     lanes_cases(true);
 }
 
-/// The flat kernel's AVX2 instance (`flatv::ab_flat_avx2`) on back-to-back
-/// tracks of `lens` against each track run alone (scalar `ab_start` and
-/// `ab_loop` with FMA): bit for bit, outputs at element offset `off`
-/// (x and v at different line positions), `nt` stores or not.
-#[cfg(target_arch = "x86_64")]
-fn flat_avx2_case<T: IoFloat>(
-    lens: &[usize],
-    off: usize,
-    shared: bool,
-    init: Init,
-    given: bool,
-    nt: bool,
-) {
-    flat_or_rows_case::<T>(lens, off, shared, init, given, nt, Kernel::Flat2, true)
-}
-
 /// Which kernel [`flat_or_rows_case`] runs.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Kernel {
-    /// `flatv::ab_flat_avx2`.
+    /// `flatv::ab_flat_avx2`, with the vector start-ups.
     Flat2,
+    /// `flatv::ab_flat_avx512` (the generic kernel at 8 lanes), with the
+    /// vector start-ups.
+    Flat512Generic,
     /// `flat::ab_flat` (AVX-512), with the vector start-ups.
     Flat512,
     /// `avx2::ab_short_rows`.
     Rows,
 }
 
-/// [`flat_avx2_case`] with the kernel `which` (the short-row lanes need all
-/// `lens` equal); `z` without NaN unless `nan`.
+/// The kernel `which` on back-to-back tracks of `lens` (the short-row lanes
+/// need all `lens` equal) against each track run alone (scalar `ab_start`
+/// and `ab_loop` with FMA): bit for bit, outputs at element offset `off`
+/// (x and v at different line positions), `nt` stores or not; `z` without
+/// NaN unless `nan`.
 #[cfg(target_arch = "x86_64")]
 #[allow(clippy::too_many_arguments)]
 fn flat_or_rows_case<T: IoFloat>(
@@ -797,9 +787,15 @@ fn flat_or_rows_case<T: IoFloat>(
         }
         .unwrap();
     } else {
-        // SAFETY: the caller checked AVX2 and FMA; T is f32 or f64.
+        let kern = if which == Kernel::Flat2 {
+            flatv::ab_flat_avx2::<T>
+        } else {
+            flatv::ab_flat_avx512::<T>
+        };
+        // SAFETY: the caller checked AVX2 and FMA (Flat2) or AVX-512F and
+        // FMA (Flat512Generic); T is f32 or f64.
         unsafe {
-            flatv::ab_flat_avx2(
+            kern(
                 &konst,
                 shared,
                 &mut start,
@@ -810,6 +806,7 @@ fn flat_or_rows_case<T: IoFloat>(
                 &mut sb,
                 nt,
                 None,
+                Some(flat::VecStart::Rows(step_init)),
             )
         }
         .unwrap();
@@ -844,52 +841,18 @@ fn flat_or_rows_case<T: IoFloat>(
     }
 }
 
+/// The flat kernel `k` with its track starts in the vector steps (fresh
+/// tracks with valid first samples) and the scalar start-ups (NaN-led
+/// tracks, given states), shared and per-track gains, against each track
+/// alone.
 #[cfg(target_arch = "x86_64")]
-#[test]
-fn flat_avx2_kernel_is_bit_identical_to_tracks_alone() {
-    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
-        eprintln!("no AVX2+FMA on this CPU: the AVX2 flat kernel not tested");
-        return;
-    }
+fn flat_kernel_cases(k: Kernel) {
     // Tiny tracks (0..3), around a block, longer; and one long track.
     let mut mixed: Vec<usize> = (0..600)
         .map(|i| [0, 1, 2, 3, 5, 8, 9, 16, 17, 40, 100][(i * 7) % 11])
         .collect();
     mixed.extend([1000, 0, 2, 257]);
     // Fewer long tracks than slots: most blocks run with idle slots.
-    let few = vec![3000, 17, 2000, 5000, 1];
-    let cases: [Vec<usize>; 5] = [mixed, vec![100; 300], vec![3; 500], vec![4096], few];
-    for lens in cases.iter() {
-        for off in [0, 1, 3, 7, 13] {
-            for shared in [true, false] {
-                for nt in [false, true] {
-                    flat_avx2_case::<f64>(lens, off, shared, Init::TwoPoint, false, nt);
-                    flat_avx2_case::<f32>(lens, off, shared, Init::TwoPoint, false, nt);
-                }
-            }
-        }
-        for (init, given) in [(Init::First, false), (Init::TwoPoint, true)] {
-            flat_avx2_case::<f64>(lens, 5, false, init, given, false);
-            flat_avx2_case::<f32>(lens, 9, true, init, given, true);
-        }
-    }
-}
-
-/// The AVX-512 flat kernel (`flat::ab_flat`), with its track starts in the
-/// vector steps (fresh tracks, shared gains, valid first samples) and the
-/// scalar start-ups (NaN-led tracks, per-track gains, given states), against
-/// each track alone.
-#[cfg(target_arch = "x86_64")]
-#[test]
-fn flat_avx512_kernel_is_bit_identical_to_tracks_alone() {
-    if !(std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("fma")) {
-        eprintln!("no AVX-512F+FMA on this CPU: the AVX-512 flat kernel not tested");
-        return;
-    }
-    let mut mixed: Vec<usize> = (0..600)
-        .map(|i| [0, 1, 2, 3, 5, 8, 9, 16, 17, 40, 100][(i * 7) % 11])
-        .collect();
-    mixed.extend([1000, 0, 2, 257]);
     let few = vec![3000, 17, 2000, 5000, 1];
     // Rows of 100 (every slot's boundaries in the same blocks), of 15 and
     // 16 (two-point starts across a block boundary), of 2 and 1.
@@ -903,7 +866,6 @@ fn flat_avx512_kernel_is_bit_identical_to_tracks_alone() {
         vec![4096],
         few,
     ];
-    let k = Kernel::Flat512;
     for lens in cases.iter() {
         for off in [0, 1, 3, 7, 13] {
             for shared in [true, false] {
@@ -919,7 +881,31 @@ fn flat_avx512_kernel_is_bit_identical_to_tracks_alone() {
         }
         flat_or_rows_case::<f64>(lens, 5, true, Init::TwoPoint, true, false, k, true);
         flat_or_rows_case::<f32>(lens, 9, true, Init::First, true, true, k, false);
+        flat_or_rows_case::<f64>(lens, 3, false, Init::First, true, true, k, true);
     }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn flat_avx2_kernel_is_bit_identical_to_tracks_alone() {
+    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+        eprintln!("no AVX2+FMA on this CPU: the AVX2 flat kernel not tested");
+        return;
+    }
+    flat_kernel_cases(Kernel::Flat2);
+}
+
+/// The AVX-512 flat kernels: the hand-written one (`flat::ab_flat`, the
+/// default) and the generic one at 8 lanes (`flatv::ab_flat_avx512`).
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn flat_avx512_kernel_is_bit_identical_to_tracks_alone() {
+    if !(std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("fma")) {
+        eprintln!("no AVX-512F+FMA on this CPU: the AVX-512 flat kernels not tested");
+        return;
+    }
+    flat_kernel_cases(Kernel::Flat512);
+    flat_kernel_cases(Kernel::Flat512Generic);
 }
 
 #[cfg(target_arch = "x86_64")]
