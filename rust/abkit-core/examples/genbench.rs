@@ -6,11 +6,18 @@
 //! ```sh
 //! cargo run --release -p abkit-core --example genbench -- 100000 100 5   # short rows, streamed
 //! cargo run --release -p abkit-core --example genbench -- 1000 10000 5   # long rows
+//! cargo run --release -p abkit-core --example genbench -- 100000 100 5 1 # continued (no start-ups)
 //! ```
 use abkit_core::filter::{filter_general, Gains, Init, IoFloat, Measurements, TrackState};
 use std::time::Instant;
 
-fn bench<F: IoFloat>(name: &str, n: usize, len: usize, reps: usize) -> abkit_core::Result<()> {
+fn bench<F: IoFloat>(
+    name: &str,
+    n: usize,
+    len: usize,
+    reps: usize,
+    cont: bool,
+) -> abkit_core::Result<()> {
     let t = 0.1;
     let (a, b, g) = (0.5, 0.4, 0.1);
     let gains = [Gains::<3, 1> {
@@ -28,7 +35,9 @@ fn bench<F: IoFloat>(name: &str, n: usize, len: usize, reps: usize) -> abkit_cor
     let mut out = vec![F::from_f64(0.0); 3 * n * len];
     let mut best = f64::INFINITY;
     for _ in 0..reps {
-        states.fill(TrackState::default());
+        if !cont {
+            states.fill(TrackState::default());
+        }
         let t0 = Instant::now();
         filter_general(
             &gains,
@@ -56,9 +65,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|s| s.parse::<usize>())
         .collect::<Result<Vec<_>, _>>()?;
     let &[n, len, reps, ..] = &a[..] else {
-        return Err("usage: genbench TRACKS SAMPLES REPS".into());
+        return Err("usage: genbench TRACKS SAMPLES REPS [CONT]".into());
     };
-    bench::<f64>("f64", n, len, reps)?;
-    bench::<f32>("f32", n, len, reps)?;
+    // CONT = 1: every run continues the previous one's states (no start-ups
+    // after the first run).
+    let cont = a.get(3) == Some(&1);
+    bench::<f64>("f64", n, len, reps, cont)?;
+    bench::<f32>("f32", n, len, reps, cont)?;
     Ok(())
 }
