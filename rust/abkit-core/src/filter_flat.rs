@@ -29,8 +29,8 @@
 use std::arch::x86_64::*;
 
 use super::simd::{
-    clean_steps8, is_f64, load8, masked_step8, masked_steps8, narrow_steps, no_nan16, no_nan8,
-    store_line, store_ps, transpose8, transpose8x16, untranspose8x16, widen_step,
+    clean_step8, clean_steps8, is_f64, load8, masked_step8, masked_steps8, narrow_steps, no_nan16,
+    no_nan8, store_line, store_ps, transpose8, transpose8x16, untranspose8x16, widen_step,
 };
 use super::{AbConst, Init, IoFloat, TrackState};
 use crate::Result;
@@ -768,7 +768,11 @@ unsafe fn compute<T: IoFloat>(
         let mut starts = starts;
         for h in 0..halves {
             let mut rows: [__m512d; W] = std::array::from_fn(|l| load8(src[l].add(h * W)));
-            let clean = inj.is_none() && starts.is_none() && no_nan8(&rows);
+            // Without NaN the steps need no missed-detection masks (the same
+            // bits): the whole half-block at once if nothing else happens in
+            // it, else step by step between the start-ups and injections.
+            let nan_free = no_nan8(&rows);
+            let clean = inj.is_none() && starts.is_none() && nan_free;
             transpose8(&mut rows);
             let (xo, vo) = (&mut xbuf[h], &mut vbuf[h]);
             if clean {
@@ -803,13 +807,21 @@ unsafe fn compute<T: IoFloat>(
                     None => (0, 0),
                 };
                 if m0 | m1 == 0 {
-                    masked_step8(c, k.one, &mut k.xv, &mut k.vv, rows[j]);
+                    if nan_free {
+                        clean_step8(c, &mut k.xv, &mut k.vv, rows[j]);
+                    } else {
+                        masked_step8(c, k.one, &mut k.xv, &mut k.vv, rows[j]);
+                    }
                 } else {
                     // Start-ups: at the first sample x = z (velocity `v0`),
                     // at the second (two-point) x = z, v = (z - z0) / T,
                     // as `ab_start`.
                     let (zj, x0) = (rows[j], k.xv);
-                    masked_step8(c, k.one, &mut k.xv, &mut k.vv, zj);
+                    if nan_free {
+                        clean_step8(c, &mut k.xv, &mut k.vv, zj);
+                    } else {
+                        masked_step8(c, k.one, &mut k.xv, &mut k.vv, zj);
+                    }
                     let vel = _mm512_div_pd(_mm512_sub_pd(zj, x0), k.ct);
                     k.xv = _mm512_mask_blend_pd(m0 | m1, k.xv, zj);
                     k.vv = _mm512_mask_blend_pd(m1, k.vv, vel);

@@ -139,13 +139,33 @@ pub(super) fn clean_steps8(
     vo: &mut [__m512d; W],
 ) {
     for j in 0..W {
-        let zj = zt[j];
+        // SAFETY: this function has AVX-512F and FMA.
+        unsafe { clean_step8([ct, calpha, coma, cg2], xv, vv, zt[j]) };
+        xo[j] = *xv;
+        vo[j] = *vv;
+    }
+}
+
+/// One step of [`clean_steps8`] (no sample NaN): the same bits as
+/// [`masked_step8`] on valid samples. Also for the flat kernel's event
+/// blocks without NaN.
+///
+/// # Safety
+/// Called only from functions compiled with AVX-512F and FMA (always
+/// inlined into them).
+#[inline(always)]
+pub(super) unsafe fn clean_step8(
+    [ct, calpha, coma, cg2]: [__m512d; 4],
+    xv: &mut __m512d,
+    vv: &mut __m512d,
+    zj: __m512d,
+) {
+    // SAFETY: forwarded from the caller (AVX-512F and FMA).
+    unsafe {
         let xp = _mm512_fmadd_pd(ct, *vv, *xv);
         let w = _mm512_fmadd_pd(cg2, zj, *vv);
         *xv = _mm512_fmadd_pd(coma, xp, _mm512_mul_pd(calpha, zj));
         *vv = _mm512_fnmadd_pd(cg2, xp, w);
-        xo[j] = *xv;
-        vo[j] = *vv;
     }
 }
 
