@@ -367,40 +367,42 @@ unsafe fn kernel<
                 let one = _mm256_set1_pd(1.0);
                 let (mut x, mut v) = (ld(k.xv[0].to_lanes()), ld(k.vv[0].to_lanes()));
                 let stream: [bool; 8] = std::array::from_fn(|i| nt && (i < 4 || v_aligned));
+                // pos..pos+sb is inside each slot's current track for each
+                // fast block (they end before the track's last sample); x
+                // lines are aligned (blocks follow them), v streamed only if
+                // aligned too. Idle slots: zeros in, a scratch line out. The
+                // pointers are set once per run of fast blocks and advanced
+                // by a line per block (idle slots: not at all).
+                let busy: [bool; 4] = std::array::from_fn(|l| slots[l].busy);
+                let adv: [isize; 4] = std::array::from_fn(|l| if busy[l] { sbi } else { 0 });
+                let mut rows = avx2::Rows {
+                    z: std::array::from_fn(|l| {
+                        if busy[l] {
+                            z.as_ptr().offset(slots[l].pos)
+                        } else {
+                            zline.0.as_ptr()
+                        }
+                    }),
+                    x: std::array::from_fn(|l| {
+                        if busy[l] {
+                            xs.as_mut_ptr().offset(slots[l].pos)
+                        } else {
+                            scratch[0].0.as_mut_ptr()
+                        }
+                    }),
+                    v: std::array::from_fn(|l| {
+                        if busy[l] {
+                            vs.as_mut_ptr().offset(slots[l].pos)
+                        } else {
+                            scratch[1].0.as_mut_ptr()
+                        }
+                    }),
+                    stream,
+                };
                 for _ in 0..n_fast {
-                    // pos..pos+sb is inside each slot's current track (fast
-                    // blocks end before the track's last sample); x lines
-                    // are aligned (blocks follow them), v streamed only if
-                    // aligned too.
-                    // Idle slots: zeros in, a scratch line out.
-                    let busy = |l: usize| slots[l].busy;
-                    let rows = avx2::Rows {
-                        z: std::array::from_fn(|l| {
-                            if busy(l) {
-                                z.as_ptr().offset(slots[l].pos)
-                            } else {
-                                zline.0.as_ptr()
-                            }
-                        }),
-                        x: std::array::from_fn(|l| {
-                            if busy(l) {
-                                xs.as_mut_ptr().offset(slots[l].pos)
-                            } else {
-                                scratch[0].0.as_mut_ptr()
-                            }
-                        }),
-                        v: std::array::from_fn(|l| {
-                            if busy(l) {
-                                vs.as_mut_ptr().offset(slots[l].pos)
-                            } else {
-                                scratch[1].0.as_mut_ptr()
-                            }
-                        }),
-                        stream,
-                    };
-                    for (l, p) in rows.z.into_iter().enumerate() {
-                        if busy(l) {
-                            super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
+                    for l in 0..4 {
+                        if busy[l] {
+                            super::prefetch(rows.z[l].wrapping_offset(PREFETCH_BLOCKS * sbi));
                         }
                     }
                     if nt {
@@ -412,9 +414,14 @@ unsafe fn kernel<
                             &c, one, &mut x, &mut v, &rows, sb, &mut stage,
                         );
                     }
-                    for s in slots.iter_mut() {
-                        s.pos += sbi;
+                    for l in 0..4 {
+                        rows.z[l] = rows.z[l].wrapping_offset(adv[l]);
+                        rows.x[l] = rows.x[l].wrapping_offset(adv[l]);
+                        rows.v[l] = rows.v[l].wrapping_offset(adv[l]);
                     }
+                }
+                for s in slots.iter_mut() {
+                    s.pos += n_fast * sbi;
                 }
                 let mut a = [0.0; W];
                 _mm256_storeu_pd(a.as_mut_ptr(), x);
