@@ -400,10 +400,10 @@ unsafe fn kernel<
                     stream,
                 };
                 for _ in 0..n_fast {
-                    for l in 0..4 {
-                        if busy[l] {
-                            super::prefetch(rows.z[l].wrapping_offset(PREFETCH_BLOCKS * sbi));
-                        }
+                    // (An idle slot's prefetch is of a line near `zline`:
+                    // harmless, and no branch.)
+                    for zl in rows.z {
+                        super::prefetch(zl.wrapping_offset(PREFETCH_BLOCKS * sbi));
                     }
                     if nt {
                         avx2::group_block::<T, true>(
