@@ -293,6 +293,120 @@ impl<T: IoFloat> Starter<'_, '_, T> {
         }
         Ok(())
     }
+
+    /// The bookkeeping of slot `l` (`s`) for its block of `sb` samples at
+    /// `s.pos`, in which something happens: pending injections and vector
+    /// start-up steps go to `ev`, the final states of tracks ending in it
+    /// to `caps` (slot, block sample, track), the next tracks of the
+    /// region start ([`Self::track`]). Returns the block's store mask (bit
+    /// `p`: sample `pos + p` is stored; staged start-up outputs included)
+    /// and whether the slot's region ends in it.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(super) fn block(
+        &mut self,
+        s: &mut Slot,
+        l: usize,
+        sb: usize,
+        ev: &mut impl BlockEvents,
+        caps: &mut Vec<(usize, usize, usize)>,
+        states: &mut [TrackState],
+        xs: &mut [T],
+        vs: &mut [T],
+        gx: &mut [T; STG],
+        gv: &mut [T; STG],
+    ) -> Result<(u32, bool)> {
+        let full = ((1u64 << sb) - 1) as u32;
+        let pos = s.pos;
+        let bend = pos + sb as isize;
+        // Samples in [pos, skip) are not stored.
+        let mut m = full;
+        let clear = |m: &mut u32, from: isize, to: isize| {
+            let (a, b) = (from.max(pos), to.min(bend));
+            if a < b {
+                let bits = ((1u64 << (b - a)) - 1) << (a - pos);
+                *m &= !(bits as u32);
+            }
+        };
+        clear(&mut m, pos, s.skip);
+        let mut done = false;
+        loop {
+            // A pending start of running in this block.
+            if s.inj < bend {
+                ev.inject((s.inj - pos) as usize, l, s.inj_x, s.inj_v, &s.inj_c);
+                s.inj = isize::MAX;
+            }
+            // Pending vector start-up steps in this block.
+            if s.vs0 < bend {
+                let p = (s.vs0 - pos) as usize;
+                if !self.shared {
+                    // The track's constants (and a state the start replaces)
+                    // before its first step.
+                    ev.inject(p, l, 0.0, 0.0, &s.inj_c);
+                }
+                ev.start(p, l, false);
+                s.vs0 = isize::MAX;
+            }
+            if s.vs1 < bend {
+                ev.start((s.vs1 - pos) as usize, l, true);
+                s.vs1 = isize::MAX;
+            }
+            if s.end > bend {
+                break;
+            }
+            // The current track ends in this block.
+            if s.running {
+                caps.push((l, (s.end - 1 - pos) as usize, s.cur));
+            }
+            let nxt = s.cur + 1;
+            if nxt >= s.region_end {
+                clear(&mut m, s.end, bend);
+                done = true;
+                break;
+            }
+            self.track(s, nxt, states, xs, vs, gx, gv)?;
+            clear(&mut m, self.off[nxt] as isize, s.skip);
+        }
+        // Staged start-up outputs are stored with the block.
+        Ok((m | (s.stg as u32 & full), done))
+    }
+}
+
+/// Where the per-slot bookkeeping of a block with events
+/// ([`Starter::block`]) puts the slots' replacements and vector start-ups:
+/// each kernel's own tables.
+pub(super) trait BlockEvents {
+    /// Slot `l` takes the state `(x, v)` and the constants `c` before block
+    /// step `p`.
+    fn inject(&mut self, p: usize, l: usize, x: f64, v: f64, c: &AbConst);
+    /// Slot `l`'s track is at its first (`second`: its second) sample in
+    /// block step `p`, started in the vector steps.
+    fn start(&mut self, p: usize, l: usize, second: bool);
+}
+
+/// [`ab_flat`]'s tables of one block with events, and whether anything
+/// went into them.
+struct Events<'a> {
+    inject: &'a mut Inject,
+    starts: &'a mut Starts,
+    any_inj: bool,
+    any_vs: bool,
+}
+
+impl BlockEvents for Events<'_> {
+    fn inject(&mut self, p: usize, l: usize, x: f64, v: f64, c: &AbConst) {
+        self.inject.set(p, l, x, v, c);
+        self.any_inj = true;
+    }
+    fn start(&mut self, p: usize, l: usize, second: bool) {
+        let m = if second {
+            &mut self.starts.s1
+        } else {
+            &mut self.starts.s0
+        };
+        m[p] |= 1 << l;
+        self.any_vs = true;
+    }
 }
 
 /// Alpha-beta over the tracks `off[j]..off[j+1]` of the flat `z`, `xs`,
@@ -559,74 +673,34 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         // One block with events: masks (bit p: sample pos + p is stored),
         // start-ups, starts of running, end-of-track captures.
         let mut masks = [0u32; LANES];
-        let mut any_inj = false;
-        let mut any_vs = false;
         starts.s0 = [0; 16];
         starts.s1 = [0; 16];
         let mut done = [false; LANES];
         caps.clear();
+        let mut ev = Events {
+            inject: &mut inject,
+            starts: &mut starts,
+            any_inj: false,
+            any_vs: false,
+        };
         for l in 0..LANES {
             let s = &mut slots[l];
-            if !s.busy {
-                continue;
+            if s.busy {
+                (masks[l], done[l]) = cx.block(
+                    s,
+                    l,
+                    sb,
+                    &mut ev,
+                    &mut caps,
+                    states,
+                    xs,
+                    vs,
+                    &mut stg_x[l],
+                    &mut stg_v[l],
+                )?;
             }
-            let pos = s.pos;
-            let bend = pos + sbi;
-            // Samples in [pos, skip) are not stored.
-            let mut m = full;
-            let clear = |m: &mut u32, from: isize, to: isize| {
-                let (a, b) = (from.max(pos), to.min(bend));
-                if a < b {
-                    let bits = ((1u64 << (b - a)) - 1) << (a - pos);
-                    *m &= !(bits as u32);
-                }
-            };
-            clear(&mut m, pos, s.skip);
-            loop {
-                // A pending start of running in this block.
-                if s.inj < bend {
-                    let p = (s.inj - pos) as usize;
-                    inject.set(p, l, s.inj_x, s.inj_v, &s.inj_c);
-                    any_inj = true;
-                    s.inj = isize::MAX;
-                }
-                // Pending vector start-up steps in this block.
-                if s.vs0 < bend {
-                    let p = (s.vs0 - pos) as usize;
-                    if !shared {
-                        // The track's constants (and a state the start
-                        // replaces) before its first step.
-                        inject.set(p, l, 0.0, 0.0, &s.inj_c);
-                        any_inj = true;
-                    }
-                    starts.s0[p] |= 1 << l;
-                    s.vs0 = isize::MAX;
-                    any_vs = true;
-                }
-                if s.vs1 < bend {
-                    starts.s1[(s.vs1 - pos) as usize] |= 1 << l;
-                    s.vs1 = isize::MAX;
-                    any_vs = true;
-                }
-                if s.end > bend {
-                    break;
-                }
-                // The current track ends in this block.
-                if s.running {
-                    caps.push((l, (s.end - 1 - pos) as usize, s.cur));
-                }
-                let nxt = s.cur + 1;
-                if nxt >= s.region_end {
-                    clear(&mut m, s.end, bend);
-                    done[l] = true;
-                    break;
-                }
-                start_track!(&mut *s, l, nxt);
-                clear(&mut m, off[nxt] as isize, s.skip);
-            }
-            // Staged start-up outputs are stored with the block.
-            masks[l] = m | (s.stg as u32 & full);
         }
+        let (any_inj, any_vs) = (ev.any_inj, ev.any_vs);
         let mut src = [std::ptr::null::<T>(); LANES];
         for (l, s) in slots.iter().enumerate() {
             let at = s.pos;

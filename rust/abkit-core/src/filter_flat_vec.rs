@@ -41,7 +41,7 @@
 
 use std::arch::x86_64::*;
 
-use super::flat::{regions, Slot, Start, Starter, VecStart, STG};
+use super::flat::{regions, BlockEvents, Slot, Start, Starter, VecStart, STG};
 use super::simd::is_f64;
 use super::{avx2, AbConst, Init, IoFloat, TrackState};
 use crate::ragged_simd::{Vd, V4, V8};
@@ -96,6 +96,20 @@ struct Starts<V> {
     s1: [u32; MAXB],
     v0: V,
     signed: Option<V>,
+}
+
+/// A block's events into the kernel's tables (their `steps` say whether
+/// anything went in).
+impl<const L: usize, V> BlockEvents for (&mut Inject<L>, &mut Starts<V>) {
+    fn inject(&mut self, p: usize, l: usize, x: f64, v: f64, c: &AbConst) {
+        self.0.set(p, l, x, v, c);
+    }
+    fn start(&mut self, p: usize, l: usize, second: bool) {
+        let st = &mut *self.1;
+        let m = if second { &mut st.s1 } else { &mut st.s0 };
+        m[p] |= 1 << l;
+        st.steps |= 1 << p;
+    }
 }
 
 /// The running states and constants of the slots, per register.
@@ -474,72 +488,25 @@ unsafe fn kernel<
         // One block with events: masks (bit p: sample pos + p is stored),
         // start-ups, starts of running, end-of-track captures.
         let mut masks = [0u32; L];
-        let mut any_inj = false;
         let mut done = [false; L];
         starts.steps = 0;
         caps.clear();
         for l in 0..L {
             let s = &mut slots[l];
-            if !s.busy {
-                continue;
+            if s.busy {
+                (masks[l], done[l]) = cx.block(
+                    s,
+                    l,
+                    sb,
+                    &mut (&mut inject, &mut starts),
+                    &mut caps,
+                    states,
+                    xs,
+                    vs,
+                    &mut stg_x[l],
+                    &mut stg_v[l],
+                )?;
             }
-            let pos = s.pos;
-            let bend = pos + sbi;
-            // Samples in [pos, skip) are not stored.
-            let mut m = full;
-            let clear = |m: &mut u32, from: isize, to: isize| {
-                let (a, b) = (from.max(pos), to.min(bend));
-                if a < b {
-                    let bits = ((1u64 << (b - a)) - 1) << (a - pos);
-                    *m &= !(bits as u32);
-                }
-            };
-            clear(&mut m, pos, s.skip);
-            loop {
-                // A pending start of running in this block.
-                if s.inj < bend {
-                    let p = (s.inj - pos) as usize;
-                    inject.set(p, l, s.inj_x, s.inj_v, &s.inj_c);
-                    any_inj = true;
-                    s.inj = isize::MAX;
-                }
-                // Pending vector start-up steps in this block.
-                if s.vs0 < bend {
-                    let p = (s.vs0 - pos) as usize;
-                    if !shared {
-                        // The track's constants (and a state the start
-                        // replaces) before its first step.
-                        inject.set(p, l, 0.0, 0.0, &s.inj_c);
-                        any_inj = true;
-                    }
-                    starts.s0[p] |= 1 << l;
-                    starts.steps |= 1 << p;
-                    s.vs0 = isize::MAX;
-                }
-                if s.vs1 < bend {
-                    let p = (s.vs1 - pos) as usize;
-                    starts.s1[p] |= 1 << l;
-                    starts.steps |= 1 << p;
-                    s.vs1 = isize::MAX;
-                }
-                if s.end > bend {
-                    break;
-                }
-                // The current track ends in this block.
-                if s.running {
-                    caps.push((l, (s.end - 1 - pos) as usize, s.cur));
-                }
-                let nxt = s.cur + 1;
-                if nxt >= s.region_end {
-                    clear(&mut m, s.end, bend);
-                    done[l] = true;
-                    break;
-                }
-                start_track!(&mut *s, l, nxt);
-                clear(&mut m, off[nxt] as isize, s.skip);
-            }
-            // Staged start-up outputs are stored with the block.
-            masks[l] = m | (s.stg as u32 & full);
         }
         let mut src = [std::ptr::null::<T>(); L];
         for (l, s) in slots.iter().enumerate() {
@@ -561,7 +528,11 @@ unsafe fn kernel<
                 t.as_ptr()
             };
         }
-        let inj = if any_inj { Some(&mut inject) } else { None };
+        let inj = if inject.steps != 0 {
+            Some(&mut inject)
+        } else {
+            None
+        };
         let vst = if starts.steps != 0 {
             Some(&mut starts)
         } else {
