@@ -493,12 +493,6 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         vstart,
         start,
     };
-    macro_rules! start_track {
-        ($s:expr, $l:expr, $j:expr) => {{
-            let l: usize = $l;
-            cx.track($s, $j, states, xs, vs, &mut stg_x[l], &mut stg_v[l])?
-        }};
-    }
     // Give slot `l` its next region (or mark it idle).
     macro_rules! refill {
         ($l:expr) => {{
@@ -509,7 +503,8 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 slots[l].busy = true;
                 slots[l].region_end = j1;
                 slots[l].pos = align_down(off[j0] as isize);
-                start_track!(&mut slots[l], l, j0);
+                let (sl, gx, gv) = (&mut slots[l], &mut stg_x[l], &mut stg_v[l]);
+                cx.track(sl, j0, states, xs, vs, gx, gv)?;
             } else {
                 slots[l].busy = false;
             }

@@ -275,14 +275,6 @@ unsafe fn kernel<
         vstart,
         start,
     };
-    // Start track `j` (at the start of its region or at a boundary) in slot
-    // `l`.
-    macro_rules! start_track {
-        ($s:expr, $l:expr, $j:expr) => {{
-            let l: usize = $l;
-            cx.track($s, $j, states, xs, vs, &mut stg_x[l], &mut stg_v[l])?
-        }};
-    }
     // Give slot `l` its next region (or mark it idle).
     macro_rules! refill {
         ($l:expr) => {{
@@ -293,7 +285,8 @@ unsafe fn kernel<
                 slots[l].busy = true;
                 slots[l].region_end = j1;
                 slots[l].pos = align_down(off[j0] as isize);
-                start_track!(&mut slots[l], l, j0);
+                let (sl, gx, gv) = (&mut slots[l], &mut stg_x[l], &mut stg_v[l]);
+                cx.track(sl, j0, states, xs, vs, gx, gv)?;
             } else {
                 slots[l].busy = false;
             }
