@@ -224,7 +224,13 @@ def test_ragged_inf_named_after_the_run():
 
 
 # The kernel switches (read once per process): tests set them in children.
-_SWITCHES = ("ABKIT_DISABLE_SIMD", "ABKIT_FLAT_AVX512", "ABKIT_FLAT_AVX2", "ABKIT_SHORT_ROWS_FLAT")
+_SWITCHES = (
+    "ABKIT_DISABLE_SIMD",
+    "ABKIT_FLAT_AVX512",
+    "ABKIT_FLAT_AVX2",
+    "ABKIT_SHORT_ROWS_FLAT",
+    "ABKIT_ROWS16",
+)
 
 
 def test_flat_kernel_equals_scalar_track_kernel_bitwise(tmp_path):
@@ -257,9 +263,11 @@ np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
 """
     # Also the AVX2 flat kernel (ABKIT_FLAT_AVX2=1, the flat paths of an
     # AVX2-only CPU, on AVX-512 CPUs too) and the generic kernel at 8 lanes
-    # (ABKIT_FLAT_AVX512=1), short rows forced into the flat kernels.
+    # (ABKIT_FLAT_AVX512=1), short rows forced into the flat kernels; and
+    # the sixteen-row AVX-512 lanes (ABKIT_ROWS16=1).
     runs = (
         ("on", {}),
+        ("rows16", {"ABKIT_ROWS16": "1"}),
         ("avx2", {"ABKIT_FLAT_AVX2": "1", "ABKIT_SHORT_ROWS_FLAT": "1"}),
         ("gen", {"ABKIT_FLAT_AVX512": "1", "ABKIT_SHORT_ROWS_FLAT": "1"}),
         ("off", {"ABKIT_DISABLE_SIMD": "1"}),

@@ -39,6 +39,9 @@ mod flat;
 #[path = "filter_flat_vec.rs"]
 mod flatv;
 #[cfg(target_arch = "x86_64")]
+#[path = "filter_rows16.rs"]
+mod rows16;
+#[cfg(target_arch = "x86_64")]
 #[path = "filter_simd.rs"]
 mod simd;
 
@@ -2008,6 +2011,12 @@ fn ab_flat_batch<T: IoFloat>(
         && (3 * total * std::mem::size_of::<T>() <= SHORT_ROWS_CACHED_BYTES
             || n <= SHORT_ROWS_MEM_MAX[usize::from(f64_)]
             || (nt && !f64_));
+    let rows16 = match rows16_switch() {
+        Some(on) => {
+            on && kind == FlatKernel::Avx512 && simd::avx2_available() && n < SIMD_MIN_SAMPLES
+        }
+        None => false,
+    };
     let (xs, vs) = out.split_at_mut(total);
     // Chunks of whole tracks (the unit of parallel work); results do not
     // depend on the chunking.
@@ -2049,15 +2058,19 @@ fn ab_flat_batch<T: IoFloat>(
             ))
         };
         let zc = &zs[j0 * n..(j0 + cn) * n];
-        if rows8 {
+        let pr = if shared {
+            &params[..1]
+        } else {
+            &params[j0..j0 + cn]
+        };
+        if rows16 {
+            // SAFETY: `kind` is Avx512 (AVX-512F and FMA checked by
+            // `flat_kernel()`) and `avx2_available()`; T is f32 or f64.
+            unsafe { rows16::ab_rows16(pr, init, n, zc, xs, vs, st, nt)? };
+        } else if rows8 {
             // SAFETY: `lanes_cpu`: AVX2 and FMA (`flat_kernel()` checked
             // them for the AVX2 kind, `avx2_available()` on AVX-512 CPUs);
             // T is f32 or f64 (`fits`).
-            let pr = if shared {
-                &params[..1]
-            } else {
-                &params[j0..j0 + cn]
-            };
             unsafe { avx2::ab_short_rows(pr, init, n, zc, xs, vs, st, nt)? };
         } else {
             // SAFETY: `flat_kernel()` checked the CPU features of `kind`; T
@@ -2156,6 +2169,14 @@ const SHORT_ROWS_MEM_MAX: [usize; 2] = [64, 80];
 /// (docs/benchmarks.md, "Run of 2026-12-02 on an Intel Xeon with AVX-512").
 #[cfg(target_arch = "x86_64")]
 const SHORT_ROWS_AVX512_F64_MAX: usize = 128;
+
+/// `ABKIT_ROWS16`: `1` short rows run in the sixteen-row AVX-512 lanes,
+/// `0` not (unset: the default). Read once.
+#[cfg(target_arch = "x86_64")]
+fn rows16_switch() -> Option<bool> {
+    static F: std::sync::OnceLock<Option<bool>> = std::sync::OnceLock::new();
+    *F.get_or_init(|| std::env::var_os("ABKIT_ROWS16").map(|v| v != "0"))
+}
 
 /// `ABKIT_SHORT_ROWS_FLAT` set to anything but `0`: short rows always run
 /// in the flat kernel (for tests and comparisons). Read once.

@@ -859,7 +859,7 @@ fn consts(c: &[AbConst; AB_LANES], g: usize) -> Consts {
 /// otherwise, and at the end of a call ([`Drain::finish`]), partial lines
 /// get plain stores (a plain store to a line not in the caches waits for
 /// the line to be read, and the stores behind it wait too).
-struct Drain<T> {
+pub(super) struct Drain<T> {
     dst: *mut T,
     src: *const T,
     /// Next line (elements from `dst`), end of the whole lines.
@@ -881,7 +881,7 @@ impl<T: IoFloat> Drain<T> {
     /// finished; `prev`'s contract holds.
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn follow(prev: &mut Option<Self>, dst: &mut [T], src: *const T) -> Self {
+    pub(super) unsafe fn follow(prev: &mut Option<Self>, dst: &mut [T], src: *const T) -> Self {
         let len = dst.len();
         let es = std::mem::size_of::<T>().max(1);
         let line = 64 / es;
@@ -928,7 +928,7 @@ impl<T: IoFloat> Drain<T> {
     /// AVX is available; the contract of [`Drain::follow`].
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn finish(&mut self) {
+    pub(super) unsafe fn finish(&mut self) {
         // SAFETY: forwarded from the caller; the tail's elements are
         // `end..end + tail_len` of dst.
         unsafe {
@@ -942,7 +942,7 @@ impl<T: IoFloat> Drain<T> {
         self.tail_len = 0;
     }
 
-    fn lines_left(&self) -> usize {
+    pub(super) fn lines_left(&self) -> usize {
         (self.end - self.at) * std::mem::size_of::<T>() / 64
     }
 
@@ -952,7 +952,7 @@ impl<T: IoFloat> Drain<T> {
     /// AVX is available.
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn lines(&mut self, k: usize) {
+    pub(super) unsafe fn lines(&mut self, k: usize) {
         let step = 64 / std::mem::size_of::<T>().max(1);
         for _ in 0..k {
             if self.at >= self.end {

@@ -640,6 +640,8 @@ enum Kernel {
     Flat512,
     /// `avx2::ab_short_rows`.
     Rows,
+    /// `rows16::ab_rows16` (AVX-512).
+    Rows16,
 }
 
 /// The kernel `which` on back-to-back tracks of `lens` (the short-row lanes
@@ -747,7 +749,7 @@ fn flat_or_rows_case<T: IoFloat>(
         ))
     };
     // SAFETY: the caller checked AVX2 and FMA; T is f32 or f64.
-    if which == Kernel::Rows {
+    if which == Kernel::Rows || which == Kernel::Rows16 {
         let n = lens.first().copied().unwrap_or(0);
         assert!(lens.iter().all(|&l| l == n));
         let pv: Vec<(f64, f64, f64)> = if shared {
@@ -755,8 +757,15 @@ fn flat_or_rows_case<T: IoFloat>(
         } else {
             (0..n_tracks).map(par).collect()
         };
+        let kern = if which == Kernel::Rows {
+            super::avx2::ab_short_rows::<T>
+        } else {
+            super::rows16::ab_rows16::<T>
+        };
+        // SAFETY: the caller checked AVX2 and FMA (Rows) or AVX-512F, AVX2
+        // and FMA (Rows16); T is f32 or f64.
         unsafe {
-            super::avx2::ab_short_rows(
+            kern(
                 &pv,
                 step_init,
                 n,
@@ -915,12 +924,35 @@ fn short_row_lanes_are_bit_identical_to_tracks_alone() {
         eprintln!("no AVX2+FMA on this CPU: the AVX2 short-row lanes not tested");
         return;
     }
-    // Row counts with and without left-over rows (fewer than 8), row
-    // lengths with no lane steps, one quarter, odd quarters and scalar
-    // tails; outputs at element offsets (partial lines joined across row
-    // groups when streamed); z with NaN (most groups start row by row) and
-    // without (every full group's two-point start in vectors).
+    short_row_cases(Kernel::Rows);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn sixteen_row_lanes_are_bit_identical_to_tracks_alone() {
+    if !(std::is_x86_feature_detected!("avx512f")
+        && std::is_x86_feature_detected!("avx2")
+        && std::is_x86_feature_detected!("fma"))
+    {
+        eprintln!("no AVX-512F+AVX2+FMA on this CPU: the sixteen-row lanes not tested");
+        return;
+    }
+    short_row_cases(Kernel::Rows16);
+}
+
+/// The short-row kernel `k` (`Rows` or `Rows16`) against each row alone.
+#[cfg(target_arch = "x86_64")]
+fn short_row_cases(k: Kernel) {
+    // Row counts with and without left-over rows (fewer than 8 or 16), row
+    // lengths with no lane steps, one block, odd blocks and masked or
+    // scalar tails; outputs at element offsets (partial lines joined
+    // across row groups when streamed); z with NaN (most groups start row
+    // by row) and without (every full group's two-point start in vectors).
     for (ntr, n) in [
+        (33, 3),
+        (48, 17),
+        (32, 24),
+        (35, 100),
         (0, 10),
         (5, 40),
         (8, 1),
@@ -938,7 +970,6 @@ fn short_row_lanes_are_bit_identical_to_tracks_alone() {
                 for nt in [false, true] {
                     for nan in [true, false] {
                         let two = Init::TwoPoint;
-                        let k = Kernel::Rows;
                         flat_or_rows_case::<f64>(&lens, off, shared, two, false, nt, k, nan);
                         flat_or_rows_case::<f32>(&lens, off, shared, two, false, nt, k, nan);
                     }
@@ -946,8 +977,8 @@ fn short_row_lanes_are_bit_identical_to_tracks_alone() {
             }
         }
         for (init, given) in [(Init::First, false), (Init::TwoPoint, true)] {
-            flat_or_rows_case::<f64>(&lens, 5, false, init, given, true, Kernel::Rows, true);
-            flat_or_rows_case::<f32>(&lens, 9, true, init, given, false, Kernel::Rows, false);
+            flat_or_rows_case::<f64>(&lens, 5, false, init, given, true, k, true);
+            flat_or_rows_case::<f32>(&lens, 9, true, init, given, false, k, false);
         }
     }
 }
