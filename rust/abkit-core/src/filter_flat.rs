@@ -187,6 +187,7 @@ impl<T: IoFloat> Starter<'_, '_, T> {
     /// with the scalar start-up, its outputs staged, and the state injected
     /// at its first running sample (`Slot::inj`).
     #[allow(clippy::too_many_arguments)]
+    #[inline]
     pub(super) fn track(
         &mut self,
         sl: &mut Slot,
@@ -197,6 +198,17 @@ impl<T: IoFloat> Starter<'_, '_, T> {
         gx: &mut [T; STG],
         gv: &mut [T; STG],
     ) -> Result<()> {
+        if self.vector_start(sl, j, states) {
+            Ok(())
+        } else {
+            self.scalar_start(sl, j, states, xs, vs, gx, gv)
+        }
+    }
+
+    /// Start track `j` in slot `sl`'s vector steps if its start allows
+    /// (the usual case, inlined into the block bookkeeping).
+    #[inline(always)]
+    fn vector_start(&mut self, sl: &mut Slot, j: usize, states: &mut [TrackState]) -> bool {
         let (off, z) = (self.off, self.z);
         let (a, e) = (off[j], off[j + 1]);
         // The slot's next tracks' states: the states are touched once per
@@ -240,8 +252,28 @@ impl<T: IoFloat> Starter<'_, '_, T> {
                 // Its constants enter the slot at its first sample.
                 sl.inj_c = (self.konst)(j);
             }
-            return Ok(());
+            return true;
         }
+        false
+    }
+
+    /// Start track `j` in slot `sl` with the scalar start-up (see
+    /// [`Self::track`]).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn scalar_start(
+        &mut self,
+        sl: &mut Slot,
+        j: usize,
+        states: &mut [TrackState],
+        xs: &mut [T],
+        vs: &mut [T],
+        gx: &mut [T; STG],
+        gv: &mut [T; STG],
+    ) -> Result<()> {
+        let (off, z) = (self.off, self.z);
+        let (a, e) = (off[j], off[j + 1]);
+        let st = &mut states[j];
         // The start-up writes its outputs into the slot's stage, from which
         // the blocks take them, so that the lines at the track boundaries are
         // stored whole (streamed): a store of part of a line waits for the
