@@ -807,10 +807,8 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         }
         // Final states of the tracks that ended in this block.
         for &(l, p, j) in caps.iter() {
-            let xr = rows_of(&xbuf, l);
-            let vr = rows_of(&vbuf, l);
-            states[j].x[0] = xr[p];
-            states[j].x[1] = vr[p];
+            states[j].x[0] = at(&xbuf, l, p);
+            states[j].x[1] = at(&vbuf, l, p);
         }
         for l in 0..LANES {
             let s = &mut slots[l];
@@ -983,6 +981,15 @@ fn rows_of(buf: &[[__m512d; W]; 2], l: usize) -> [f64; 16] {
         _mm512_storeu_pd(r.as_mut_ptr().add(8), buf[1][l]);
     }
     r
+}
+
+/// Sample `p` of slot `l` in a transposed block (one permute, no round
+/// trip through memory).
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn at(buf: &[[__m512d; W]; 2], l: usize, p: usize) -> f64 {
+    let v = buf[p / W][l];
+    _mm512_cvtsd_f64(_mm512_permutexvar_pd(_mm512_set1_epi64((p % W) as i64), v))
 }
 
 /// Store the samples of a line whose bit is set in `m` (`f64`: the 8 of
