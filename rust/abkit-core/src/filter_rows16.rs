@@ -18,6 +18,11 @@
 //!
 //! Every running sample is `ab_step::<true>`: each row is bit-identical to
 //! the row run alone and to the other kernels.
+//!
+//! Opt-in (`ABKIT_ROWS16=1`, read by `filter::ab_flat_batch`): on an Intel
+//! Xeon (Sapphire Rapids class) it was faster than the AVX2 short rows only
+//! with z and outputs in the caches and in `f32`, and slower from memory in
+//! both precisions (docs/benchmarks.md, session 18).
 
 use std::arch::x86_64::*;
 
@@ -146,7 +151,7 @@ pub(super) unsafe fn ab_rows16<T: IoFloat>(
             v[l] = st.x[1];
         }
         if running && kmax < n {
-            // The next group's z (and states), fetched while this group runs
+            // The next group's z, fetched while this group runs
             // (sixteen interleaved rows defeat the hardware prefetcher).
             let next = if j0 + 2 * R <= cn {
                 Some(z[(j0 + R) * n..].as_ptr())
