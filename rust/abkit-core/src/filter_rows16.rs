@@ -382,48 +382,21 @@ unsafe fn block_f64(
 ) {
     // SAFETY: forwarded from the caller.
     unsafe {
-        if steps == W {
-            // Half rows: register i of `a` holds samples 0..4 of rows i and
-            // i + 4 (the inserts from memory run on the load and blend
-            // ports), `b` samples 4..8; then two 4 x 4 transposes within
-            // the halves (16 shuffles instead of the 24 of `transpose8`).
-            let half = |i: usize, s: usize| {
-                _mm512_insertf64x4::<1>(
-                    _mm512_castpd256_pd512(_mm256_loadu_pd(z.add(i * n + s))),
-                    _mm256_loadu_pd(z.add((i + 4) * n + s)),
-                )
-            };
-            let a: [__m512d; 4] = std::array::from_fn(|i| half(i, 0));
-            let b: [__m512d; 4] = std::array::from_fn(|i| half(i, 4));
-            let [c0, c1, c2, c3] = tr4h(a);
-            let [c4, c5, c6, c7] = tr4h(b);
-            let rows = [c0, c1, c2, c3, c4, c5, c6, c7];
-            let clean = no_nan8(&rows);
-            let zero = _mm512_setzero_pd();
-            let (mut xb, mut vb) = ([zero; W], [zero; W]);
-            if clean {
-                clean_steps8(&rows, c, xv, vv, &mut xb, &mut vb);
-            } else {
-                masked_steps8(&rows, c, xv, vv, &mut xb, &mut vb);
-            }
-            for (buf, o) in [(&xb, xo), (&vb, vo)] {
-                for s in [0, 4] {
-                    let q = tr4h([buf[s], buf[s + 1], buf[s + 2], buf[s + 3]]);
-                    for i in 0..4 {
-                        _mm256_storeu_pd(o.add(i * n + s), _mm512_castpd512_pd256(q[i]));
-                        _mm256_storeu_pd(o.add((i + 4) * n + s), _mm512_extractf64x4_pd::<1>(q[i]));
-                    }
-                }
-            }
-            return;
-        }
         let mut rows: [__m512d; W] =
             std::array::from_fn(|i| _mm512_maskz_loadu_pd(m, z.add(i * n)));
         let clean = no_nan8(&rows);
         transpose8(&mut rows);
         let zero = _mm512_setzero_pd();
         let (mut xb, mut vb) = ([zero; W], [zero; W]);
-        partial_steps(&rows, steps, clean, c, xv, vv, &mut xb, &mut vb);
+        if steps == W {
+            if clean {
+                clean_steps8(&rows, c, xv, vv, &mut xb, &mut vb);
+            } else {
+                masked_steps8(&rows, c, xv, vv, &mut xb, &mut vb);
+            }
+        } else {
+            partial_steps(&rows, steps, clean, c, xv, vv, &mut xb, &mut vb);
+        }
         transpose8(&mut xb);
         transpose8(&mut vb);
         for i in 0..W {
@@ -495,31 +468,6 @@ unsafe fn block_f32(
                 _mm512_mask_storeu_ps(vo.add(i * n), m, vl[i]);
             }
         }
-    }
-}
-
-/// Two 4 x 4 transposes within the 256-bit halves of four registers:
-/// element `j` of half `h` of result `i` is element `i` of half `h` of
-/// `r[j]` (8 shuffles).
-///
-/// # Safety
-/// AVX-512F is available.
-#[inline(always)]
-unsafe fn tr4h(r: [__m512d; 4]) -> [__m512d; 4] {
-    // SAFETY: forwarded from the caller.
-    unsafe {
-        let t0 = _mm512_unpacklo_pd(r[0], r[1]);
-        let t1 = _mm512_unpackhi_pd(r[0], r[1]);
-        let t2 = _mm512_unpacklo_pd(r[2], r[3]);
-        let t3 = _mm512_unpackhi_pd(r[2], r[3]);
-        let lo = _mm512_set_epi64(13, 12, 5, 4, 9, 8, 1, 0);
-        let hi = _mm512_set_epi64(15, 14, 7, 6, 11, 10, 3, 2);
-        [
-            _mm512_permutex2var_pd(t0, lo, t2),
-            _mm512_permutex2var_pd(t1, lo, t3),
-            _mm512_permutex2var_pd(t0, hi, t2),
-            _mm512_permutex2var_pd(t1, hi, t3),
-        ]
     }
 }
 
