@@ -15,6 +15,9 @@ use abkit_core::irregular::{AbDesign, AbFixed, GainLaw};
 use abkit_core::ragged::{filter_tracks, NoPost, Options, Samples, TrackFilter};
 use std::time::Instant;
 
+mod common;
+use common::{thp_capacity, thp_vec};
+
 fn bench<L: GainLaw<2, 1>>(
     name: &str,
     laws: &[L],
@@ -37,7 +40,7 @@ fn bench<L: GainLaw<2, 1>>(
     let n_tracks = off.len() - 1;
     let mut st = vec![TrackState::default(); n_tracks];
     let mut counts = vec![[0i64; 2]; n_tracks];
-    let mut states = vec![0.0f64; 2 * z.len()];
+    let mut states = thp_vec(2 * z.len(), |_| 0.0f64);
     let zs = Samples::flat(z, 1)?;
     let ts = Samples::flat(t, 1)?;
     let mut best = f64::INFINITY;
@@ -84,7 +87,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .wrapping_add(1442695040888963407);
         (s >> 11) as f64 / (1u64 << 53) as f64
     };
-    let (mut z, mut t) = (Vec::new(), Vec::new());
+    let (mut z, mut t) = (thp_capacity(n * len), thp_capacity(n * len));
     let off: Vec<i64> = (0..=n).map(|i| (i * len) as i64).collect();
     for _ in 0..n {
         let mut tk = 0.0;

@@ -12,6 +12,9 @@ use abkit_core::irregular::AbFixed;
 use abkit_core::ragged::{filter_tracks, NoPost, Options, Samples, TrackFilter};
 use std::time::Instant;
 
+mod common;
+use common::thp_vec;
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let a = std::env::args()
         .skip(1)
@@ -41,7 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         n += len;
         off.push(n as i64);
     }
-    let z: Vec<f64> = (0..n).map(|i| i as f64 * 0.01 + r()).collect();
+    let z: Vec<f64> = thp_vec(n, |i| i as f64 * 0.01 + r());
     let laws = [AbFixed {
         alpha: 0.5,
         beta: 0.2,
@@ -60,16 +63,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let n_tracks = off.len() - 1;
     let mut st = vec![TrackState::default(); n_tracks];
     let mut counts = vec![[0i64; 2]; n_tracks];
-    let mut states = vec![0.0f64; 2 * n];
+    let mut states = thp_vec(2 * n, |_| 0.0f64);
     let zs = Samples::flat(&z, 1)?;
     // Timestamps (optional): steps uniform in 0.05..0.15.
     let mut acc = 0.0;
-    let t: Vec<f64> = (0..n)
-        .map(|_| {
-            acc += 0.05 + 0.1 * r();
-            acc
-        })
-        .collect();
+    let t: Vec<f64> = thp_vec(n, |_| {
+        acc += 0.05 + 0.1 * r();
+        acc
+    });
     let ts = Samples::flat(&t, 1)?;
     let mut best = f64::INFINITY;
     for _ in 0..reps {

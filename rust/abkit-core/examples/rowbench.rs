@@ -14,6 +14,9 @@
 use abkit_core::filter::{filter_ab, Init, IoFloat, Measurements, TrackState};
 use std::time::Instant;
 
+mod common;
+use common::thp_vec;
+
 fn bench<F: IoFloat>(
     name: &str,
     n: usize,
@@ -21,12 +24,12 @@ fn bench<F: IoFloat>(
     reps: usize,
     cont: bool,
 ) -> abkit_core::Result<()> {
-    let z: Vec<F> = (0..n * len)
-        .map(|i| F::from_f64((i % len) as f64 * 0.7 + ((i * 7919) % 13) as f64 * 0.1))
-        .collect();
+    let z: Vec<F> = thp_vec(n * len, |i| {
+        F::from_f64((i % len) as f64 * 0.7 + ((i * 7919) % 13) as f64 * 0.1)
+    });
     let meas = Measurements::contiguous(&z, n, len, 1)?;
     let mut states = vec![TrackState::default(); n];
-    let mut out = vec![F::from_f64(0.0); 2 * n * len];
+    let mut out = thp_vec(2 * n * len, |_| F::from_f64(0.0));
     let mut best = f64::INFINITY;
     for _ in 0..reps {
         if !cont {

@@ -34,6 +34,10 @@
 //! from the block rows at its last sample. So the lines at the boundaries
 //! are stored whole too.
 //!
+//! With streamed outputs a slot that needs a new region takes, of the next
+//! few, one whose output lines are not at another slot's offset modulo
+//! 4 KiB ([`spread_region`]; Zen 3 runs such non-temporal streams slowly).
+//!
 //! Every running sample is the scalar `ab_step::<true>` (the same fused
 //! operations in the same order) and every start the scalar start-up's
 //! arithmetic, so each track is bit-identical to the scalar lanes and to the
@@ -51,6 +55,50 @@ use crate::Result;
 const PREFETCH_BLOCKS: isize = 8;
 /// Most samples in a block (16 `f32`).
 const MAXB: usize = 16;
+
+/// Regions looked at by [`spread_region`].
+const SPREAD_LOOKAHEAD: usize = 8;
+
+/// The region (index into `cand`, the regions not yet given out, in
+/// order) for slot `l` when outputs are streamed: the first of the next
+/// [`SPREAD_LOOKAHEAD`] whose first `x` and `v` lines are more than a line
+/// away, modulo 4 KiB, from every other busy slot's `x` and `v` lines (else
+/// the next one). All slots move on by a line per block, so these
+/// distances hold until the next refill. On an AMD EPYC (Zen 3) streams of
+/// non-temporal stores that agree modulo 4 KiB run much slower
+/// (docs/benchmarks.md, sessions 11 and 19): equal tracks whose slots' `x`
+/// and `v` lines agreed ran 1.7-2.1 ns per sample against 0.94-1.05 for
+/// others, and a ragged batch of lengths 10..10,000 gained 5 %. Any order
+/// of the regions gives the same results.
+fn spread_region<const L: usize>(
+    cand: &[(usize, usize)],
+    off: &[usize],
+    l: usize,
+    slots: &[Slot; L],
+    (xb, vb): (usize, usize),
+    es: usize,
+    align_down: impl Fn(isize) -> isize,
+) -> usize {
+    const PAGE: usize = 4096;
+    let at = |base: usize, pos: isize| base.wrapping_add((pos as usize).wrapping_mul(es)) % PAGE;
+    let near = |a: usize, b: usize| {
+        let d = (a + PAGE - b) % PAGE;
+        !(128..=PAGE - 128).contains(&d)
+    };
+    let clear = |x: usize, v: usize| {
+        slots.iter().enumerate().all(|(m, s)| {
+            let (sx, sv) = (at(xb, s.pos), at(vb, s.pos));
+            m == l || !s.busy || !(near(sx, x) || near(sx, v) || near(sv, x) || near(sv, v))
+        })
+    };
+    cand.iter()
+        .take(SPREAD_LOOKAHEAD)
+        .position(|&(j0, _)| {
+            let p = align_down(off[j0] as isize);
+            clear(at(xb, p), at(vb, p))
+        })
+        .unwrap_or(0)
+}
 
 /// One block of samples, 64-byte aligned.
 #[repr(C, align(64))]
@@ -234,7 +282,8 @@ unsafe fn kernel<
     let mis = ((xs.as_ptr() as usize) % 64 / es) as isize;
     let align_down = |p: isize| p - (p + mis).rem_euclid(sbi);
     let v_aligned = (vs.as_ptr() as usize) % 64 == (xs.as_ptr() as usize) % 64;
-    let regs = regions(off, (total / 64).clamp(512, 8192), skip);
+    let mut regs = regions(off, (total / 64).clamp(512, 8192), skip);
+    let bases = (xs.as_ptr() as usize, vs.as_ptr() as usize);
     let mut next_region = 0;
     let c0 = konst(0);
     let mut slots = [Slot {
@@ -280,6 +329,11 @@ unsafe fn kernel<
         ($l:expr) => {{
             let l: usize = $l;
             if next_region < regs.len() {
+                if nt {
+                    let c =
+                        spread_region(&regs[next_region..], off, l, &slots, bases, es, align_down);
+                    regs.swap(next_region, next_region + c);
+                }
                 let (j0, j1) = regs[next_region];
                 next_region += 1;
                 slots[l].busy = true;
@@ -622,10 +676,14 @@ unsafe fn kernel<
                     stg_v[l].copy_within(sb.., 0);
                 }
             }
+            if !done[l] && slots[l].busy {
+                slots[l].pos += sbi;
+            }
+        }
+        // (After the others moved on: a refill sees where they are.)
+        for l in 0..L {
             if done[l] {
                 refill!(l);
-            } else if slots[l].busy {
-                slots[l].pos += sbi;
             }
         }
     }
