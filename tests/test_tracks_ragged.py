@@ -84,6 +84,35 @@ def test_rectangular_with_t_equals_flat_with_offsets():
     np.testing.assert_array_equal(f.run(zt, t=np.asfortranarray(t)).states, a.states)
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("init", ["two-point", "first"])
+@pytest.mark.parametrize("n_long", [19, 300])
+def test_long_ragged_tracks_without_t_equal_each_track_alone(dtype, init, n_long):
+    # Long tracks of close lengths (one flat-kernel region each); 300 of
+    # them make outputs of more than 8 MiB (streamed stores, regions
+    # reordered to spread the slots' lines). Equal to each track alone, bit
+    # for bit, also continued from the first half's states.
+    rng = np.random.default_rng(11)
+    lens = np.concatenate([rng.integers(2048, 2300, n_long), [5003, 0, 7, 100, 2047]])
+    rng.shuffle(lens)
+    off, _, z = ragged(rng, lens, nan=0.05, dtype=dtype)
+    z[off[3] : off[3] + 5] = np.nan  # a long track starting with NaN
+    f = AlphaBetaFilter(0.5, 0.2, 0.1)
+    r = f.run(z, offsets=off, init=init)
+    half = [(a + b) // 2 for a, b in zip(off[:-1], off[1:])]
+    i1 = np.concatenate([np.arange(a, m) for a, m in zip(off[:-1], half)])
+    i2 = np.concatenate([np.arange(m, b) for m, b in zip(half, off[1:])])
+    o1 = np.concatenate([[0], np.cumsum([m - a for a, m in zip(off[:-1], half)])]).astype(np.int64)
+    o2 = np.concatenate([[0], np.cumsum([b - m for m, b in zip(half, off[1:])])]).astype(np.int64)
+    r1 = f.run(z[i1], offsets=o1, init=init)
+    r2 = f.run(z[i2], offsets=o2, init=init, state=r1.state)
+    np.testing.assert_array_equal(r2.states, r.states[:, i2])
+    for i, (a, b) in enumerate(zip(off[:-1], off[1:])):
+        one = f.run(z[a:b], init=init)
+        np.testing.assert_array_equal(r.states[:, a:b], one.states, err_msg=f"track {i}")
+        np.testing.assert_array_equal(r.state._packed[i], one.state._packed[0], err_msg=f"state of track {i}")
+
+
 def test_threads_do_not_change_results():
     rng = np.random.default_rng(4)
     lens = rng.integers(10, 3000, 60)

@@ -443,6 +443,12 @@ fn flat_case<T: IoFloat>(init: Init, shared: bool, given: bool) {
     let lens: Vec<usize> = (0..700)
         .map(|i| [0, 1, 2, 3, 5, 8, 9, 15, 16, 17, 40, 100, 7][(i * 7) % 13])
         .chain([1000, 0, 2, 257, 300])
+        // Long tracks of close lengths (regions of one track each, refilled
+        // one at a time), some starting with NaN, some continuing (`given`).
+        .chain([
+            2100, 2101, 2150, 2049, 2120, 9, 2190, 2222, 2130, 2047, 2160, 2111, 2180, 2200, 2140,
+            2170, 2050, 2049, 5003,
+        ])
         .collect();
     let mut off = vec![0i64];
     for &l in &lens {
