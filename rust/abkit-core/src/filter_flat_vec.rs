@@ -35,7 +35,7 @@
 //! are stored whole too.
 //!
 //! With streamed outputs a slot that needs a new region takes, of the next
-//! few, one whose output lines are not at another slot's offset modulo
+//! few, one whose output lines are not at another slot's line offset modulo
 //! 4 KiB ([`spread_region`]; Zen 3 runs such non-temporal streams slowly).
 //!
 //! Every running sample is the scalar `ab_step::<true>` (the same fused
@@ -61,15 +61,16 @@ const SPREAD_LOOKAHEAD: usize = 8;
 
 /// The region (index into `cand`, the regions not yet given out, in
 /// order) for slot `l` when outputs are streamed: the first of the next
-/// [`SPREAD_LOOKAHEAD`] whose first `x` and `v` lines are more than a line
-/// away, modulo 4 KiB, from every other busy slot's `x` and `v` lines (else
-/// the next one). All slots move on by a line per block, so these
-/// distances hold until the next refill. On an AMD EPYC (Zen 3) streams of
-/// non-temporal stores that agree modulo 4 KiB run much slower
-/// (docs/benchmarks.md, sessions 11 and 19): equal tracks whose slots' `x`
-/// and `v` lines agreed ran 1.7-2.1 ns per sample against 0.94-1.05 for
-/// others, and a ragged batch of lengths 10..10,000 gained 5 %. Any order
-/// of the regions gives the same results.
+/// [`SPREAD_LOOKAHEAD`] whose first `x` and `v` lines are not at the line
+/// offset, modulo 4 KiB, of another busy slot's `x` or `v` line (else the
+/// next one). All slots move on by a line per block, so these offsets hold
+/// until the next refill. On an AMD EPYC (Zen 3) streams of non-temporal
+/// stores that agree modulo 4 KiB run much slower (docs/benchmarks.md,
+/// sessions 11 and 19): equal tracks whose slots' `x` and `v` lines agreed
+/// ran 1.7-2.1 ns per sample against 0.94-1.2 for others (lines next to
+/// each other are not slow), and ragged batches of lengths 10..10,000,
+/// 10..1,000 and 1,000..10,000 gained 5-10 %. Any order of the regions
+/// gives the same results.
 fn spread_region<const L: usize>(
     cand: &[(usize, usize)],
     off: &[usize],
@@ -83,7 +84,7 @@ fn spread_region<const L: usize>(
     let at = |base: usize, pos: isize| base.wrapping_add((pos as usize).wrapping_mul(es)) % PAGE;
     let near = |a: usize, b: usize| {
         let d = (a + PAGE - b) % PAGE;
-        !(128..=PAGE - 128).contains(&d)
+        !(64..=PAGE - 64).contains(&d)
     };
     let clear = |x: usize, v: usize| {
         slots.iter().enumerate().all(|(m, s)| {
