@@ -86,17 +86,23 @@ fn spread_region<const L: usize>(
         let d = (a + PAGE - b) % PAGE;
         !(64..=PAGE - 64).contains(&d)
     };
-    let clear = |x: usize, v: usize| {
-        slots.iter().enumerate().all(|(m, s)| {
-            let (sx, sv) = (at(xb, s.pos), at(vb, s.pos));
-            m == l || !s.busy || !(near(sx, x) || near(sx, v) || near(sv, x) || near(sv, v))
-        })
-    };
+    // The other busy slots' x and v line offsets (L <= 32, asserted by the
+    // kernel).
+    let mut taken = [0usize; 64];
+    let mut n = 0;
+    for (m, s) in slots.iter().enumerate() {
+        if m != l && s.busy {
+            taken[n] = at(xb, s.pos);
+            taken[n + 1] = at(vb, s.pos);
+            n += 2;
+        }
+    }
     cand.iter()
         .take(SPREAD_LOOKAHEAD)
         .position(|&(j0, _)| {
             let p = align_down(off[j0] as isize);
-            clear(at(xb, p), at(vb, p))
+            let (x, v) = (at(xb, p), at(vb, p));
+            taken[..n].iter().all(|&t| !near(t, x) && !near(t, v))
         })
         .unwrap_or(0)
 }

@@ -6,7 +6,6 @@
 
 /// A vector of `n` values `f(i)` whose pages are advised as huge before
 /// they are first touched (Linux; elsewhere an ordinary vector).
-#[allow(dead_code)]
 pub fn thp_vec<T>(n: usize, f: impl FnMut(usize) -> T) -> Vec<T> {
     let mut v = thp_capacity(n);
     v.extend((0..n).map(f));
@@ -15,7 +14,6 @@ pub fn thp_vec<T>(n: usize, f: impl FnMut(usize) -> T) -> Vec<T> {
 
 /// An empty vector with room for `n` values on huge pages (see
 /// [`thp_vec`]).
-#[allow(dead_code)]
 pub fn thp_capacity<T>(n: usize) -> Vec<T> {
     let mut v: Vec<T> = Vec::with_capacity(n);
     #[cfg(target_os = "linux")]
