@@ -297,7 +297,6 @@ pub(super) struct Rows<T> {
 /// `sb` is 8 (`f64`) or 16 (`f32`) if `NT`, else a multiple of 4 up to
 /// 16; each lane has `sb` readable `z` and `sb` writable `x` and `v`
 /// elements at its pointers; a streamed line is 32-byte aligned.
-#[allow(unused_unsafe)]
 #[inline(always)]
 pub(super) unsafe fn group_block<T: IoFloat, const NT: bool>(
     c: &Consts,
@@ -307,6 +306,79 @@ pub(super) unsafe fn group_block<T: IoFloat, const NT: bool>(
     rows: &Rows<T>,
     sb: usize,
     stage: &mut [[T; 16]; 2 * V],
+) {
+    // SAFETY: forwarded from the caller.
+    unsafe { group_block_ev::<T, NT>(c, one, x, v, rows, sb, stage, None) }
+}
+
+/// The track starts and final-state captures of one block of the flat
+/// kernel's four slots ([`group_block_ev`]): bit `p` of `steps` if a slot
+/// starts a track at block step `p`, with `s0[p]` (bit `l`: slot `l` at its
+/// track's first sample) and `s1[p]` (at its second, two-point start), both
+/// cleared when used; `v0` the velocity at a first sample (`Init::First`:
+/// `v0 + signed * z`; two-point: NaN), as `filter_flat_vec::compute`; bit
+/// `p` of `caps`: the states after step `p` are wanted (`capx[p]`,
+/// `capv[p]`, slot `l` in lane `l`).
+pub(super) struct BlockStarts<'a> {
+    pub(super) steps: u32,
+    pub(super) s0: &'a mut [u32; 16],
+    pub(super) s1: &'a mut [u32; 16],
+    pub(super) v0: __m256d,
+    pub(super) signed: Option<__m256d>,
+    pub(super) caps: u32,
+    pub(super) capx: &'a mut [__m256d; 16],
+    pub(super) capv: &'a mut [__m256d; 16],
+}
+
+/// The lanes whose bit is set in `bits` (all ones there).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn mask4(bits: u32) -> __m256d {
+    let b = _mm256_set_epi64x(8, 4, 2, 1);
+    let m = _mm256_and_si256(_mm256_set1_epi64x(bits as i64), b);
+    _mm256_castsi256_pd(_mm256_cmpeq_epi64(m, b))
+}
+
+/// Block step `p`'s track starts after the step from `x0` on sample `z`:
+/// at a first sample `x = z`, `v = v0`, at a second `x = z`,
+/// `v = (z - x0) / T` (the operations of `filter_flat_vec::compute`).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn start_blend(
+    e: &mut BlockStarts<'_>,
+    c: &Consts,
+    x: &mut __m256d,
+    v: &mut __m256d,
+    x0: __m256d,
+    z: __m256d,
+    p: usize,
+) {
+    let (b0, b1) = (std::mem::take(&mut e.s0[p]), std::mem::take(&mut e.s1[p]));
+    let vel = _mm256_div_pd(_mm256_sub_pd(z, x0), c.t);
+    *x = _mm256_blendv_pd(*x, z, mask4(b0 | b1));
+    *v = _mm256_blendv_pd(*v, vel, mask4(b1));
+    let v0 = match e.signed {
+        Some(zs) => _mm256_add_pd(e.v0, _mm256_mul_pd(zs, z)),
+        None => e.v0,
+    };
+    *v = _mm256_blendv_pd(*v, v0, mask4(b0));
+}
+
+/// [`group_block`] with the starts and captures of `ev` (if any).
+///
+/// # Safety
+/// As [`group_block`].
+#[allow(unused_unsafe, clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) unsafe fn group_block_ev<T: IoFloat, const NT: bool>(
+    c: &Consts,
+    one: __m256d,
+    x: &mut __m256d,
+    v: &mut __m256d,
+    rows: &Rows<T>,
+    sb: usize,
+    stage: &mut [[T; 16]; 2 * V],
+    mut ev: Option<&mut BlockStarts<'_>>,
 ) {
     // SAFETY: the caller has AVX2 and FMA; every access is inside a lane's
     // sb elements (q V + V <= sb) or inside `stage` (sb <= 16).
@@ -338,15 +410,33 @@ pub(super) unsafe fn group_block<T: IoFloat, const NT: bool>(
             let mut vo = [zero; V];
             if !any_nan {
                 for j in 0..V {
+                    let x0 = *x;
                     step_clean(c, x, v, r[j]);
+                    if let Some(e) = ev.as_deref_mut() {
+                        if e.steps & (1 << (at + j)) != 0 {
+                            start_blend(e, c, x, v, x0, r[j], at + j);
+                        }
+                    }
                     xo[j] = *x;
                     vo[j] = *v;
                 }
             } else {
                 for j in 0..V {
+                    let x0 = *x;
                     step(c, one, x, v, r[j]);
+                    if let Some(e) = ev.as_deref_mut() {
+                        if e.steps & (1 << (at + j)) != 0 {
+                            start_blend(e, c, x, v, x0, r[j], at + j);
+                        }
+                    }
                     xo[j] = *x;
                     vo[j] = *v;
+                }
+            }
+            if let Some(e) = ev.as_deref_mut() {
+                if (e.caps >> at) & 0xf != 0 {
+                    e.capx[at..at + V].copy_from_slice(&xo);
+                    e.capv[at..at + V].copy_from_slice(&vo);
                 }
             }
             if is_f64::<T>() {

@@ -187,7 +187,7 @@ impl<T: IoFloat> Starter<'_, '_, T> {
     /// with the scalar start-up, its outputs staged, and the state injected
     /// at its first running sample (`Slot::inj`).
     #[allow(clippy::too_many_arguments)]
-    #[inline]
+    #[inline(always)]
     pub(super) fn track(
         &mut self,
         sl: &mut Slot,

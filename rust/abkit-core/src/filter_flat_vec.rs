@@ -34,6 +34,17 @@
 //! from the block rows at its last sample. So the lines at the boundaries
 //! are stored whole too.
 //!
+//! In the AVX2 instance the usual block with events (shared gains; each
+//! track boundary a track ending and the next starting in the vector
+//! steps; no injection, staged start-up output or region end: 24,704 of
+//! the 25,315 event blocks of 100,000 rows of 100 `f64`) also runs through
+//! the row lanes' block ([`avx2::group_block_ev`]): the starts blended in
+//! per step with the operations of [`compute`], the final states taken
+//! from the steps' registers, whole lines stored (10-11 % fewer
+//! instructions on rows of 100 and ragged lengths 10..10,000; 4-6 % faster
+//! in the caches, docs/benchmarks.md session 20). Other event blocks take
+//! [`compute`].
+//!
 //! With streamed outputs a slot that needs a new region takes, of the next
 //! few, one whose output lines are not at another slot's line offset modulo
 //! 4 KiB ([`spread_region`]; Zen 3 runs such non-temporal streams slowly).
@@ -398,6 +409,85 @@ unsafe fn kernel<
         Line([T::from_f64(0.0); MAXB]),
         Line([T::from_f64(0.0); MAXB]),
     ];
+    // The AVX2 instance (`FAST4`: W == 4, so each `[f64; W]` holds the four
+    // slots): its constants and states as `__m256d` (`regs4!`) and back
+    // (`unregs4!`).
+    macro_rules! regs4 {
+        () => {{
+            let c = avx2::Consts {
+                t: _mm256_loadu_pd(k.ct[0].to_lanes().as_ptr()),
+                alpha: _mm256_loadu_pd(k.calpha[0].to_lanes().as_ptr()),
+                oma: _mm256_loadu_pd(k.coma[0].to_lanes().as_ptr()),
+                g2: _mm256_loadu_pd(k.cg2[0].to_lanes().as_ptr()),
+            };
+            let x = _mm256_loadu_pd(k.xv[0].to_lanes().as_ptr());
+            let v = _mm256_loadu_pd(k.vv[0].to_lanes().as_ptr());
+            (c, x, v)
+        }};
+    }
+    macro_rules! unregs4 {
+        ($x:expr, $v:expr) => {{
+            let mut a = [0.0; W];
+            _mm256_storeu_pd(a.as_mut_ptr(), $x);
+            k.xv[0] = V::from_lanes(&a);
+            _mm256_storeu_pd(a.as_mut_ptr(), $v);
+            k.vv[0] = V::from_lanes(&a);
+        }};
+    }
+    // The four slots' block rows at their `pos` for `group_block` and how
+    // far each moves per block: x lines are aligned (blocks follow them), v
+    // streamed only if aligned too; idle slots: zeros in, a scratch line
+    // out, not moving. (Each busy slot's block must be inside z, xs, vs.)
+    macro_rules! rows4 {
+        () => {{
+            let busy: [bool; 4] = std::array::from_fn(|l| slots[l].busy);
+            let adv: [isize; 4] = std::array::from_fn(|l| if busy[l] { sbi } else { 0 });
+            let rows = avx2::Rows {
+                z: std::array::from_fn(|l| {
+                    if busy[l] {
+                        z.as_ptr().offset(slots[l].pos)
+                    } else {
+                        zline.0.as_ptr()
+                    }
+                }),
+                x: std::array::from_fn(|l| {
+                    if busy[l] {
+                        xs.as_mut_ptr().offset(slots[l].pos)
+                    } else {
+                        scratch[0].0.as_mut_ptr()
+                    }
+                }),
+                v: std::array::from_fn(|l| {
+                    if busy[l] {
+                        vs.as_mut_ptr().offset(slots[l].pos)
+                    } else {
+                        scratch[1].0.as_mut_ptr()
+                    }
+                }),
+                stream: std::array::from_fn(|i| nt && (i < 4 || v_aligned)),
+            };
+            (rows, adv)
+        }};
+    }
+    // (FAST4) The first-sample velocity of the vector starts, and the
+    // states at the captures of a block with events.
+    let (v0_4, signed_4) = if FAST4 {
+        // SAFETY: W == 4 (FAST4); the CPU has AVX2 (caller).
+        unsafe {
+            (
+                _mm256_loadu_pd(starts.v0.to_lanes().as_ptr()),
+                starts
+                    .signed
+                    .map(|s| _mm256_loadu_pd(s.to_lanes().as_ptr())),
+            )
+        }
+    } else {
+        // SAFETY: the CPU has AVX (caller).
+        unsafe { (_mm256_setzero_pd(), None) }
+    };
+    // SAFETY: the CPU has AVX (caller).
+    let mut capx = [unsafe { _mm256_setzero_pd() }; MAXB];
+    let mut capv = capx;
     loop {
         if slots.iter().all(|s| !s.busy) {
             break;
@@ -425,48 +515,11 @@ unsafe fn kernel<
             // SAFETY: W == 4 (asserted above), so each [f64; W] holds the
             // four slots; the CPU has AVX2 and FMA (caller).
             unsafe {
-                let ld = |a: [f64; W]| _mm256_loadu_pd(a.as_ptr());
-                let c = avx2::Consts {
-                    t: ld(k.ct[0].to_lanes()),
-                    alpha: ld(k.calpha[0].to_lanes()),
-                    oma: ld(k.coma[0].to_lanes()),
-                    g2: ld(k.cg2[0].to_lanes()),
-                };
-                let one = _mm256_set1_pd(1.0);
-                let (mut x, mut v) = (ld(k.xv[0].to_lanes()), ld(k.vv[0].to_lanes()));
-                let stream: [bool; 8] = std::array::from_fn(|i| nt && (i < 4 || v_aligned));
+                let (c, mut x, mut v) = regs4!();
                 // pos..pos+sb is inside each slot's current track for each
-                // fast block (they end before the track's last sample); x
-                // lines are aligned (blocks follow them), v streamed only if
-                // aligned too. Idle slots: zeros in, a scratch line out. The
-                // pointers are set once per run of fast blocks and advanced
-                // by a line per block (idle slots: not at all).
-                let busy: [bool; 4] = std::array::from_fn(|l| slots[l].busy);
-                let adv: [isize; 4] = std::array::from_fn(|l| if busy[l] { sbi } else { 0 });
-                let mut rows = avx2::Rows {
-                    z: std::array::from_fn(|l| {
-                        if busy[l] {
-                            z.as_ptr().offset(slots[l].pos)
-                        } else {
-                            zline.0.as_ptr()
-                        }
-                    }),
-                    x: std::array::from_fn(|l| {
-                        if busy[l] {
-                            xs.as_mut_ptr().offset(slots[l].pos)
-                        } else {
-                            scratch[0].0.as_mut_ptr()
-                        }
-                    }),
-                    v: std::array::from_fn(|l| {
-                        if busy[l] {
-                            vs.as_mut_ptr().offset(slots[l].pos)
-                        } else {
-                            scratch[1].0.as_mut_ptr()
-                        }
-                    }),
-                    stream,
-                };
+                // fast block (they end before the track's last sample).
+                let (mut rows, adv) = rows4!();
+                let one = _mm256_set1_pd(1.0);
                 for _ in 0..n_fast {
                     // (An idle slot's prefetch is of a line near `zline`:
                     // harmless, and no branch.)
@@ -491,11 +544,7 @@ unsafe fn kernel<
                 for s in slots.iter_mut() {
                     s.pos += n_fast * sbi;
                 }
-                let mut a = [0.0; W];
-                _mm256_storeu_pd(a.as_mut_ptr(), x);
-                k.xv[0] = V::from_lanes(&a);
-                _mm256_storeu_pd(a.as_mut_ptr(), v);
-                k.vv[0] = V::from_lanes(&a);
+                unregs4!(x, v);
             }
             continue;
         }
@@ -561,6 +610,74 @@ unsafe fn kernel<
                     &mut stg_v[l],
                 )?;
             }
+        }
+        if FAST4
+            && inject.steps == 0
+            && (0..L).all(|l| {
+                let s = &slots[l];
+                !done[l]
+                    && s.stg == 0
+                    && (!s.busy || (masks[l] == full && s.pos >= 0 && s.pos + sbi <= len))
+            })
+        {
+            // The usual block with events (shared gains; every boundary a
+            // track ending and the next starting in the vector steps; no
+            // injection, staged output or region end): the fast blocks'
+            // `group_block` with the starts blended in per step (the
+            // operations of `compute`: the same bits) and the states kept at
+            // the captures; whole lines stored.
+            // SAFETY: W == 4 (FAST4); each busy slot's block is inside z,
+            // xs and vs (checked above); the CPU has AVX2 and FMA (caller).
+            unsafe {
+                let (c, mut x, mut v) = regs4!();
+                let (rows, _) = rows4!();
+                let mut ev = avx2::BlockStarts {
+                    steps: starts.steps,
+                    s0: &mut starts.s0,
+                    s1: &mut starts.s1,
+                    v0: v0_4,
+                    signed: signed_4,
+                    caps: caps.iter().fold(0, |a, &(_, p, _)| a | 1 << p),
+                    capx: &mut capx,
+                    capv: &mut capv,
+                };
+                let one = _mm256_set1_pd(1.0);
+                if nt {
+                    avx2::group_block_ev::<T, true>(
+                        &c,
+                        one,
+                        &mut x,
+                        &mut v,
+                        &rows,
+                        sb,
+                        &mut stage,
+                        Some(&mut ev),
+                    );
+                } else {
+                    avx2::group_block_ev::<T, false>(
+                        &c,
+                        one,
+                        &mut x,
+                        &mut v,
+                        &rows,
+                        sb,
+                        &mut stage,
+                        Some(&mut ev),
+                    );
+                }
+                for &(l, p, j) in caps.iter() {
+                    let (mut a, mut b) = ([0.0; 4], [0.0; 4]);
+                    _mm256_storeu_pd(a.as_mut_ptr(), capx[p]);
+                    _mm256_storeu_pd(b.as_mut_ptr(), capv[p]);
+                    states[j].x[0] = a[l];
+                    states[j].x[1] = b[l];
+                }
+                unregs4!(x, v);
+            }
+            for s in slots.iter_mut().filter(|s| s.busy) {
+                s.pos += sbi;
+            }
+            continue;
         }
         let mut src = [std::ptr::null::<T>(); L];
         for (l, s) in slots.iter().enumerate() {
