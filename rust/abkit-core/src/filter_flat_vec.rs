@@ -546,49 +546,47 @@ unsafe fn kernel<
                 }
                 unregs4!(x, v);
             }
-            continue;
-        }
-        for _ in 0..n_fast {
-            let mut src = [std::ptr::null::<T>(); L];
-            for (l, s) in slots.iter().enumerate() {
-                src[l] = if s.busy {
-                    // SAFETY (pointer): pos..pos+sb is inside the current
-                    // track (fast blocks end before the track's last sample).
-                    let p = unsafe { z.as_ptr().offset(s.pos) };
-                    super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
-                    p
-                } else {
-                    zline.0.as_ptr()
-                };
-            }
-            // SAFETY: every src[l] has sb readable samples.
-            unsafe {
-                compute::<V, T, W, R, L>(&src, halves, &mut k, None, None, &mut xbuf, &mut vbuf)
-            };
-            for (l, s) in slots.iter_mut().enumerate() {
-                if !s.busy {
-                    continue;
+        } else {
+            for _ in 0..n_fast {
+                let mut src = [std::ptr::null::<T>(); L];
+                for (l, s) in slots.iter().enumerate() {
+                    src[l] = if s.busy {
+                        // SAFETY (pointer): pos..pos+sb is inside the current
+                        // track (fast blocks end before the track's last sample).
+                        let p = unsafe { z.as_ptr().offset(s.pos) };
+                        super::prefetch(p.wrapping_offset(PREFETCH_BLOCKS * sbi));
+                        p
+                    } else {
+                        zline.0.as_ptr()
+                    };
                 }
-                // SAFETY: pos..pos+sb is inside xs and vs; x stores are
-                // line-aligned (blocks follow x's lines), v streamed only if
-                // aligned too.
+                // SAFETY: every src[l] has sb readable samples.
                 unsafe {
-                    put_line::<V, T, W, R>(xs.as_mut_ptr().offset(s.pos), &xbuf, l, halves, nt);
-                    put_line::<V, T, W, R>(
-                        vs.as_mut_ptr().offset(s.pos),
-                        &vbuf,
-                        l,
-                        halves,
-                        nt && v_aligned,
-                    );
+                    compute::<V, T, W, R, L>(&src, halves, &mut k, None, None, &mut xbuf, &mut vbuf)
+                };
+                for (l, s) in slots.iter_mut().enumerate() {
+                    if !s.busy {
+                        continue;
+                    }
+                    // SAFETY: pos..pos+sb is inside xs and vs; x stores are
+                    // line-aligned (blocks follow x's lines), v streamed only if
+                    // aligned too.
+                    unsafe {
+                        put_line::<V, T, W, R>(xs.as_mut_ptr().offset(s.pos), &xbuf, l, halves, nt);
+                        put_line::<V, T, W, R>(
+                            vs.as_mut_ptr().offset(s.pos),
+                            &vbuf,
+                            l,
+                            halves,
+                            nt && v_aligned,
+                        );
+                    }
+                    s.pos += sbi;
                 }
-                s.pos += sbi;
             }
         }
-        if n_fast > 0 {
-            continue;
-        }
-        // One block with events: masks (bit p: sample pos + p is stored),
+        // One block with events (after a run of blocks without, the next
+        // block has some): masks (bit p: sample pos + p is stored),
         // start-ups, starts of running, end-of-track captures.
         let mut masks = [0u32; L];
         let mut done = [false; L];
