@@ -41,9 +41,10 @@
 //! the row lanes' block ([`avx2::group_block_ev`]): the starts blended in
 //! per step with the operations of [`compute`], the final states taken
 //! from the steps' registers, whole lines stored (10-11 % fewer
-//! instructions on rows of 100 and ragged lengths 10..10,000; 4-6 % faster
-//! in the caches, docs/benchmarks.md session 20). Other event blocks take
-//! [`compute`].
+//! instructions on rows of 100 and ragged lengths 10..10,000; on an AMD
+//! EPYC rows of 100 in the caches 4 % faster, ragged 10..10,000 from memory
+//! 6 %, 100,000 x 100 `f64` from Python 10 %; docs/benchmarks.md, session
+//! 20). Other event blocks take [`compute`].
 //!
 //! With streamed outputs a slot that needs a new region takes, of the next
 //! few, one whose output lines are not at another slot's line offset modulo
