@@ -32,3 +32,31 @@ fn numeric_steady_state_is_a_riccati_fixed_point() {
         assert!((next - &p).amax() < 1e-12 * p.amax());
     }
 }
+
+/// Found by fuzzing (fuzz/regressions/designs/singer_tiny_noise_negative_position):
+/// theta = 0.757 with q T^5 / sigma_pos^2 and sigma_vel T / sigma_pos at
+/// 9.7e-72. The numeric solver's prediction covariance had a position
+/// variance of -4.7e-50 (the other variances 3e-72 and 6e-72): not rounding
+/// but a wrong solution, returned as a steady state. Every method now gives
+/// an error or a covariance whose variances are non-negative to 1e-7 of
+/// max |P|.
+#[test]
+fn tiny_noise_gives_an_error_not_a_negative_variance() {
+    let (theta, qn, rv) = (
+        0.7566061019897461,
+        9.730415952684516e-72,
+        9.730415951366742e-72,
+    );
+    for method in [Method::Numeric, Method::ClosedForm, Method::Auto] {
+        match steady_state(theta, qn, rv, method) {
+            Ok(s) => {
+                let p = s.p_pred;
+                let scale = p.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for i in 0..3 {
+                    assert!(p[(i, i)] >= -1e-7 * scale, "{method:?}: {p}");
+                }
+            }
+            Err(e) => assert!(matches!(e, Error::NoSolution(_)), "{method:?}: {e}"),
+        }
+    }
+}
