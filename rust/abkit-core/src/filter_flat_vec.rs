@@ -470,6 +470,21 @@ unsafe fn kernel<
             (rows, adv)
         }};
     }
+    // One block of the four slots through the row lanes' block code (with
+    // the starts and captures of `$ev`), streamed if `nt`.
+    macro_rules! block4 {
+        ($c:expr, $one:expr, $x:expr, $v:expr, $rows:expr, $ev:expr) => {
+            if nt {
+                avx2::group_block_ev::<T, true>(
+                    &$c, $one, &mut $x, &mut $v, &$rows, sb, &mut stage, $ev,
+                )
+            } else {
+                avx2::group_block_ev::<T, false>(
+                    &$c, $one, &mut $x, &mut $v, &$rows, sb, &mut stage, $ev,
+                )
+            }
+        };
+    }
     // (FAST4) The first-sample velocity of the vector starts, and the
     // states at the captures of a block with events.
     let (v0_4, signed_4) = if FAST4 {
@@ -527,15 +542,7 @@ unsafe fn kernel<
                     for zl in rows.z {
                         super::prefetch(zl.wrapping_offset(PREFETCH_BLOCKS * sbi));
                     }
-                    if nt {
-                        avx2::group_block::<T, true>(
-                            &c, one, &mut x, &mut v, &rows, sb, &mut stage,
-                        );
-                    } else {
-                        avx2::group_block::<T, false>(
-                            &c, one, &mut x, &mut v, &rows, sb, &mut stage,
-                        );
-                    }
+                    block4!(c, one, x, v, rows, None);
                     for l in 0..4 {
                         rows.z[l] = rows.z[l].wrapping_offset(adv[l]);
                         rows.x[l] = rows.x[l].wrapping_offset(adv[l]);
@@ -641,29 +648,7 @@ unsafe fn kernel<
                     capv: &mut capv,
                 };
                 let one = _mm256_set1_pd(1.0);
-                if nt {
-                    avx2::group_block_ev::<T, true>(
-                        &c,
-                        one,
-                        &mut x,
-                        &mut v,
-                        &rows,
-                        sb,
-                        &mut stage,
-                        Some(&mut ev),
-                    );
-                } else {
-                    avx2::group_block_ev::<T, false>(
-                        &c,
-                        one,
-                        &mut x,
-                        &mut v,
-                        &rows,
-                        sb,
-                        &mut stage,
-                        Some(&mut ev),
-                    );
-                }
+                block4!(c, one, x, v, rows, Some(&mut ev));
                 for &(l, p, j) in caps.iter() {
                     let (mut a, mut b) = ([0.0; 4], [0.0; 4]);
                     _mm256_storeu_pd(a.as_mut_ptr(), capx[p]);

@@ -325,8 +325,8 @@ pub(crate) fn finish(
     // ||P||) can come out slightly negative; beyond 1e-7 of ||P|| the
     // solution is wrong, not rounded (fuzzing: theta = 0.757 with q and the
     // velocity noise at 1e-71 gave a position variance of -4.7e-50 next to
-    // the other variances' 3e-72 and 6e-72). The Python layer checks the
-    // same rule.
+    // the other variances' 3e-72 and 6e-72). Python raises this as
+    // LinAlgError and zeroes the variances within the tolerance.
     let scale = p.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     if let Some(i) = (0..3).find(|&i| p[(i, i)].is_nan() || p[(i, i)] < -1e-7 * scale) {
         return Err(Error::NoSolution(format!(
