@@ -917,14 +917,41 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     // Block outputs (every entry read is written in the same block; made
     // once: zeroing it per block cost a 1.5 KiB memset per block).
     let mut outv = [[zero; BMAX]; N];
+    // Each lane's and component's output at the current block's first
+    // sample, advanced by a block at a time: one pointer load per store
+    // instead of the address arithmetic of `k[l] + b bs + q L` per store.
+    let mut at: [[*mut T; N]; L] =
+        std::array::from_fn(|l| std::array::from_fn(|i| out[l][i].wrapping_add(k[l])));
+    // Whether every output row is streamed, none is, or some are: the
+    // stores' kind is decided once, not per store.
+    let all_nt = stream.iter().all(|s| s.iter().all(|&b| b));
+    let no_nt = stream.iter().all(|s| s.iter().all(|&b| !b));
+    // The block's stores: per component and group of 4 samples, a 4 x 4
+    // transpose and one store per lane.
+    macro_rules! store_block {
+        ($l:ident, $i:ident, $nt:expr) => {
+            for ($i, ov) in outv.iter().enumerate() {
+                for q in 0..bs / L {
+                    let mut r: [__m256d; L] = std::array::from_fn(|s| ov[q * L + s]);
+                    transpose4(&mut r);
+                    for $l in 0..L {
+                        // SAFETY: at[l][i] + q L + L <= out[l][i] + k[l] + (b + 1) bs
+                        // <= out[l][i] + n (blocks <= (n - k[l]) / bs), within
+                        // states[i]; streamed rows are aligned to 64 bytes at
+                        // k[l] (checked in `stream`), so to 4 values here.
+                        unsafe { store4(at[$l][$i].add(q * L), r[$l], $nt) };
+                    }
+                }
+            }
+        };
+    }
     for b in 0..blocks {
         if let Some((dz, dout)) = ahead {
             for l in 0..L {
-                let at = k[l] + b * bs;
-                prefetch(rows[l].as_ptr().wrapping_add(dz + at * M));
+                prefetch(rows[l].as_ptr().wrapping_add(dz + (k[l] + b * bs) * M));
                 if !nt {
-                    for o in &out[l] {
-                        prefetch(o.wrapping_add(dout + at));
+                    for o in &at[l] {
+                        prefetch(o.wrapping_add(dout));
                     }
                 }
             }
@@ -951,17 +978,16 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
                 }
             }
         }
-        for (i, ov) in outv.iter().enumerate() {
-            for q in 0..bs / L {
-                let mut r: [__m256d; L] = std::array::from_fn(|s| ov[q * L + s]);
-                transpose4(&mut r);
-                for l in 0..L {
-                    let at = k[l] + b * bs + q * L;
-                    // SAFETY: at + L <= k[l] + (b + 1) bs <= n <= states[i].len();
-                    // streamed rows are aligned to 64 bytes at k[l] (checked
-                    // in `stream`), so to 4 values at `at`.
-                    unsafe { store4(out[l][i].add(at), r[l], stream[l][i]) };
-                }
+        if all_nt {
+            store_block!(l, i, true);
+        } else if no_nt {
+            store_block!(l, i, false);
+        } else {
+            store_block!(l, i, stream[l][i]);
+        }
+        for a in at.iter_mut() {
+            for p in a.iter_mut() {
+                *p = p.wrapping_add(bs);
             }
         }
     }
