@@ -66,7 +66,8 @@ class FeedTracker:
     ----------
     filt : FixedGainFilter
         A scalar-measurement filter (``AlphaBetaFilter``,
-        ``AlphaBetaGammaFilter``, a Singer ``tracking_filter``, ...). With
+        ``AlphaBetaGammaFilter``, a Singer ``tracking_filter``, ...;
+        without ``transient="kalman"``, a ``ValueError``). With
         timestamps, filters designed from noise use the steady-state gains
         of each step (see ``docs/tracks.md``).
     axes : int, optional
@@ -113,8 +114,11 @@ class FeedTracker:
             raise ValueError(f"filt has {filt.m} measurements per sample; FeedTracker runs scalar-measurement filters (one per axis)")
         if not isinstance(axes, (int, np.integer)) or isinstance(axes, bool) or axes < 1:
             raise ValueError(f"axes must be a positive integer, got {axes!r}")
-        if init not in ("two-point", "first"):
+        if not isinstance(init, str) or init not in ("two-point", "first"):
             raise ValueError(f"init must be 'two-point' or 'first', got {init!r}")
+        if filt._transient is not None:
+            raise ValueError("FeedTracker runs the steady-state filter: a filter with transient='kalman' is not "
+                             "supported (its exact Kalman start runs in filter.run(z) on whole tracks)")
         _tracks.check_on_duplicate(on_duplicate)
         _tracks.check_max_gap(max_gap, True)
         filt._check_params(1)  # one parameter set: tracks come and go

@@ -474,7 +474,8 @@ def filter(
         A column name not in ``df`` (naming it); a missing id or timestamp
         (naming the row); a non-increasing timestamp with
         ``on_duplicate="raise"`` (naming the track id and row); an estimate
-        column name that already exists; a filter with vector measurements.
+        column name that already exists; a filter with vector measurements
+        or with ``transient="kalman"``.
     ImportError
         polars/pandas/pyarrow features used without the package
         (``abkit[frame]``).
@@ -513,6 +514,9 @@ def filter(
         raise TypeError(f"filter must be an abkit filter, got {type(filter).__name__}")
     if filter.m != 1:
         raise ValueError(f"filter has {filter.m} measurements per sample; abkit.frame.filter runs scalar-measurement filters (one per column)")
+    if filter._transient is not None:
+        raise ValueError("abkit.frame.filter runs the steady-state filter: a filter with transient='kalman' is not "
+                         "supported (its exact Kalman start runs in filter.run(z) on whole tracks)")
     for what, c in (("id", id), ("time", time)):
         if not isinstance(c, str) and not (what == "time" and c is None):
             raise TypeError(f"{what} must be a column name (str){'' if what == 'id' else ' or None'}, got {type(c).__name__}")

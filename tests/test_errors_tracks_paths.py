@@ -1,0 +1,95 @@
+"""Bad input on the track-kernel paths (``run`` with ``t``, ``offsets`` or
+``axes``; ``FeedTracker``; ``abkit.frame.filter``): a ``ValueError`` or
+``TypeError`` that names the argument and the problem, raised before any
+output is written, and the input left as it was.
+
+These are the error branches a coverage run of the whole suite (session 21)
+found unexercised; the messages are checked by their distinctive words.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import abkit
+from abkit import AlphaBetaFilter, FeedTracker
+
+F = AlphaBetaFilter(0.5, 0.2, 0.1)
+T2 = np.cumsum(np.ones((2, 5)), axis=1)
+
+
+def test_integer_list_z_with_t_is_a_type_error():
+    with pytest.raises(TypeError, match=r"z must be a float32 or float64 array, got int64"):
+        F.run([[1, 2, 3, 4, 5], [1, 2, 3, 4, 5]], t=T2)
+
+
+@pytest.mark.parametrize("threads", [0, -1, 1.5, True, "2"])
+def test_bad_threads_with_t_names_threads(threads):
+    with pytest.raises(ValueError, match=r"threads must be a positive integer or None"):
+        F.run(np.zeros((2, 5)), t=T2, threads=threads)
+
+
+@pytest.mark.parametrize("kw", [dict(t=T2), dict(offsets=[0, 5, 10])])
+def test_per_track_T_with_t_or_offsets_is_refused(kw):
+    f = AlphaBetaFilter([0.5, 0.4], [0.2, 0.1], [0.1, 0.2])
+    z = np.zeros((2, 5)) if "t" in kw else np.zeros(10)
+    with pytest.raises(ValueError, match=r"one sampling period T for all tracks \(the filter has per-track T\)"):
+        f.run(z, **kw)
+
+
+def test_axes_state_of_the_wrong_kind_or_axes():
+    z2 = np.zeros((2, 5, 2))
+    r2 = F.run(z2, axes=2)
+    with pytest.raises(TypeError, match=r"state must be a FilterState \(result.state\), got ndarray"):
+        F.run(z2, axes=2, state=np.zeros((4, 8)))
+    with pytest.raises(ValueError, match=r"state is for axes=3, the call has axes=2"):
+        F.run(z2, axes=2, state=F.run(np.zeros((2, 5, 3)), axes=3).state)
+    with pytest.raises(ValueError, match=r"state is for axes=None, the call has axes=2"):
+        F.run(z2, axes=2, state=F.run(np.zeros((2, 5))).state)
+    # the matching state still continues
+    assert F.run(z2, axes=2, state=r2.state).states.shape == (2, 2, 5, 2)
+
+
+@pytest.mark.parametrize("path", ["offsets", "t", "rectangle"])
+def test_overflowing_estimates_name_the_track(path):
+    # z near the float64 limit with alternating signs: the residuals
+    # overflow to inf; every path reports it instead of returning inf.
+    z = np.array([[1.0, 2.0, 3.0, 4.0, 5.0], [1e308, -1e308, 1e308, -1e308, 1e308]])
+    zc = z.copy()
+    with pytest.raises(ValueError, match=r"the estimates of track 1 overflowed float64: z values up to 1e\+308"):
+        if path == "offsets":
+            F.run(z.ravel(), offsets=[0, 5, 10])
+        elif path == "t":
+            F.run(z, t=T2)
+        else:
+            F.run(z)
+    assert np.array_equal(z, zc)
+
+
+def test_overflow_allowed_when_unstable_filters_are():
+    f = AlphaBetaFilter(0.5, 0.2, 0.1, allow_unstable=True)
+    z = np.array([1e308, -1e308, 1e308, -1e308, 1e308])
+    r = f.run(z, offsets=[0, 5])
+    assert not np.all(np.isfinite(r.position))
+
+
+def test_feed_tracker_refuses_a_kalman_transient_filter():
+    fk = AlphaBetaFilter.from_noise(3.2, 32.0, 0.1, transient="kalman")
+    with pytest.raises(ValueError, match=r"FeedTracker runs the steady-state filter: a filter with transient='kalman'"):
+        FeedTracker(fk)
+
+
+@pytest.mark.parametrize("init", [np.array([0.0, 1.0]), None, 2, "two_point"])
+def test_feed_tracker_init_must_be_a_start_name(init):
+    with pytest.raises(ValueError, match=r"init must be 'two-point' or 'first', got"):
+        FeedTracker(F, init=init)
+
+
+def test_frame_filter_refuses_a_kalman_transient_filter():
+    pd = pytest.importorskip("pandas")
+    fk = AlphaBetaFilter.from_noise(3.2, 32.0, 0.1, transient="kalman")
+    df = pd.DataFrame({"id": [1, 1, 2, 2], "time": [0.0, 1.0, 0.0, 1.0], "x": [1.0, 2.0, 3.0, 4.0]})
+    for kw in (dict(time="time"), dict()):
+        with pytest.raises(ValueError, match=r"abkit.frame.filter runs the steady-state filter: a filter with transient='kalman'"):
+            abkit.frame.filter(df, id="id", columns=["x"], filter=fk, **kw)
