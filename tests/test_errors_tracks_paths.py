@@ -93,3 +93,56 @@ def test_frame_filter_refuses_a_kalman_transient_filter():
     for kw in (dict(time="time"), dict()):
         with pytest.raises(ValueError, match=r"abkit.frame.filter runs the steady-state filter: a filter with transient='kalman'"):
             abkit.frame.filter(df, id="id", columns=["x"], filter=fk, **kw)
+
+
+# ---------------------------------------------------------------------------
+# smooth(..., offsets=, smoother_gain=): the track kernel's constant backward
+# gain given by the caller (this path had no test before session 21).
+
+def _smooth_case():
+    f = AlphaBetaFilter.from_noise(3.2, 32.0, 0.1)
+    rng = np.random.default_rng(21)
+    z = np.cumsum(rng.normal(size=(3, 40)), axis=1) + rng.normal(size=(3, 40))
+    z[1, 7] = np.nan
+    return f, z
+
+
+def test_smooth_offsets_with_a_given_gain_equals_the_rectangle():
+    f, z = _smooth_case()
+    a = 0.5 * f.smoother_gain()  # not the default: the given gain must be the one used
+    rect = f.smooth(z, smoother_gain=a)
+    flat = f.smooth(z.ravel(), offsets=[0, 40, 80, 120], smoother_gain=a)
+    assert np.array_equal(rect.states.reshape(2, -1), flat.states, equal_nan=True)
+    default = f.smooth(z.ravel(), offsets=[0, 40, 80, 120])
+    assert not np.array_equal(default.states, flat.states, equal_nan=True)
+    # one gain per track (3 parameter sets) also goes through
+    fp = AlphaBetaFilter.from_noise([3.2, 3.2, 3.2], [32.0, 32.0, 32.0], 0.1)
+    per = fp.smooth(z.ravel(), offsets=[0, 40, 80, 120], smoother_gain=np.stack([a[0]] * 3))
+    assert np.array_equal(per.states, flat.states, equal_nan=True)
+
+
+@pytest.mark.parametrize(
+    "gain, match",
+    [
+        (np.eye(3), r"smoother_gain must be finite with shape \(2, 2\) or \(n_tracks, 2, 2\), got \(3, 3\)"),
+        (np.full((2, 2), np.nan), r"smoother_gain must be finite"),
+        (np.stack([np.eye(2)] * 2), r"smoother_gain has 2 gains for 3 parameter sets"),
+    ],
+)
+def test_smooth_offsets_bad_smoother_gain(gain, match):
+    f = AlphaBetaFilter.from_noise([3.2, 3.0, 2.8], [32.0, 32.0, 32.0], 0.1)
+    z = np.zeros(30)
+    with pytest.raises(ValueError, match=match):
+        f.smooth(z, offsets=[0, 10, 20, 30], smoother_gain=gain)
+
+
+def test_smooth_offsets_gain_and_model_not_both():
+    f, z = _smooth_case()
+    with pytest.raises(ValueError, match=r"give smoother_gain or \(Q, R\), not both"):
+        f.smooth(z.ravel(), offsets=[0, 40, 80, 120], smoother_gain=f.smoother_gain(), Q=np.eye(2), R=np.eye(1))
+
+
+def test_smooth_track_paths_refuse_a_kalman_transient():
+    fk = AlphaBetaFilter.from_noise(3.2, 32.0, 0.1, transient="kalman")
+    with pytest.raises(ValueError, match=r"transient='kalman' does not support t, offsets, axes"):
+        fk.smooth(np.zeros(20), offsets=[0, 10, 20])
