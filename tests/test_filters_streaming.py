@@ -237,6 +237,34 @@ def test_tracker_one_number_per_update():
         Tracker(f).update(np.array([1 + 2j]))
 
 
+def test_tracker_n_tracks_checked_on_the_first_chunk():
+    # n_tracks given: the first chunk must have that many tracks (counted
+    # per spatial axis with axes=), else a ValueError naming z_chunk and
+    # nothing kept; not given: taken from the first chunk; reset() forgets it.
+    f = AlphaBetaFilter(0.5, 0.2, 1.0)
+    z = np.cumsum(np.random.default_rng(8).normal(size=(3, 12, 2)), axis=1)
+    trk = Tracker(f, n_tracks=2)
+    with pytest.raises(ValueError, match=r"z_chunk has 3 tracks; this tracker was made with n_tracks=2"):
+        trk.update(z[..., 0])
+    assert trk.state is None and trk.samples == 0
+    a = trk.update(z[:2, :5, 0])
+    b = trk.update(z[:2, 5:, 0])
+    assert same(np.concatenate([a.states, b.states], axis=-1), f.run(z[:2, :, 0]).states)
+    free = Tracker(f)
+    assert free.n_tracks is None
+    free.update(z[:, :4, 0])
+    assert free.n_tracks == 3
+    with pytest.raises(ValueError, match="state is for 3 tracks"):
+        free.update(z[:2, 4:, 0])
+    free.reset()
+    assert free.n_tracks is None and free.update(z[:1, :, 0]).states.shape == (2, 1, 12)
+    ax = Tracker(f, n_tracks=3)
+    r = ax.update(z, axes=2)
+    assert ax.n_tracks == 3 and r.states.shape == (2, 3, 12, 2)
+    with pytest.raises(ValueError, match=r"n_tracks must be a positive integer or None, got True"):
+        Tracker(f, n_tracks=True)
+
+
 def test_state_copied_and_checked():
     f = AlphaBetaFilter(0.5, 0.2, 1.0)
     z = np.cumsum(np.ones((3, 10)), axis=1)

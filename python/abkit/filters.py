@@ -828,8 +828,9 @@ class FixedGainFilter:
             return "kin3", rows
         raise NotImplementedError(f"{type(self).__name__}.smooth(t=...) is not implemented for the gain law {kind!r}")
 
-    def tracker(self, n_tracks: int = 1, init: Any = "two-point") -> "Tracker":
-        """A :class:`Tracker` that holds this filter's state between chunks."""
+    def tracker(self, n_tracks: Optional[int] = None, init: Any = "two-point") -> "Tracker":
+        """A :class:`Tracker` that holds this filter's state between chunks
+        (``n_tracks``, ``init``: as for :class:`Tracker`)."""
         return Tracker(self, n_tracks=n_tracks, init=init)
 
     def __repr__(self) -> str:
@@ -1233,6 +1234,27 @@ def _check_rate(what: str, ratio: np.ndarray, names: Tuple[str, ...], arrays: Tu
 class Tracker:
     """Real-time wrapper: holds a filter's state between chunks.
 
+    Parameters
+    ----------
+    filt : FixedGainFilter
+        The filter (any abkit filter).
+    n_tracks : int, optional
+        Number of tracks of every chunk. Given, the first chunk must have
+        that many (a ``ValueError`` naming ``z_chunk`` otherwise); None
+        (default): taken from the first chunk. Later chunks must match the
+        first (the state is per track).
+    init : {"two-point", "first"} or array_like, optional
+        Start of the tracks (as in :meth:`FixedGainFilter.run`).
+
+    Attributes
+    ----------
+    state : FilterState or None
+        The tracks' state after the last chunk (None before the first).
+    n_tracks : int or None
+        Tracks per chunk (None until the first chunk if not given).
+    samples : int
+        Samples per track filtered so far.
+
     Examples
     --------
     >>> import numpy as np
@@ -1246,14 +1268,15 @@ class Tracker:
     (1,)
     """
 
-    def __init__(self, filt: FixedGainFilter, n_tracks: int = 1, init: Any = "two-point"):
+    def __init__(self, filt: FixedGainFilter, n_tracks: Optional[int] = None, init: Any = "two-point"):
         if not isinstance(filt, FixedGainFilter):
             raise TypeError("filt must be an abkit filter")
-        if not isinstance(n_tracks, (int, np.integer)) or n_tracks < 1:
-            raise ValueError(f"n_tracks must be a positive integer, got {n_tracks!r}")
+        if n_tracks is not None and (not isinstance(n_tracks, (int, np.integer)) or isinstance(n_tracks, bool) or n_tracks < 1):
+            raise ValueError(f"n_tracks must be a positive integer or None, got {n_tracks!r}")
         self.filter = filt
         self.init = init
-        self.n_tracks = int(n_tracks)
+        self._n_given = None if n_tracks is None else int(n_tracks)
+        self.n_tracks: Optional[int] = self._n_given
         self.state: Optional[FilterState] = None
         self.samples = 0
 
@@ -1265,7 +1288,7 @@ class Tracker:
         z = np.asarray(z_chunk) if not isinstance(z_chunk, np.ndarray) else z_chunk
         if z.dtype.kind in "iub":
             z = z.astype(np.float64)
-        if z.ndim == 0 and self.n_tracks == 1 and self.filter.m == 1:
+        if z.ndim == 0 and self.n_tracks in (None, 1) and self.filter.m == 1:
             z = z.reshape(1)
         try:
             res = self.filter.run(z, init=self.init, state=self.state, **kw)
@@ -1274,14 +1297,22 @@ class Tracker:
             if msg.startswith("z "):
                 raise type(exc)("z_chunk" + msg[1:]) from None
             raise
+        got = res.state.n_tracks // (res.state.axes or 1)
+        if self.state is None:
+            if self.n_tracks is not None and got != self.n_tracks:
+                raise ValueError(f"z_chunk has {got} track{'s' if got != 1 else ''}; this tracker was made "
+                                 f"with n_tracks={self.n_tracks}")
+            self.n_tracks = got
         self.state = res.state
         self.samples += res.states.shape[-1] if res.state.axes is None else res.states.shape[-2]
         return res
 
     def reset(self) -> None:
-        """Forget the state (the next chunk starts new tracks)."""
+        """Forget the state (the next chunk starts new tracks, as many as
+        ``n_tracks`` was given, else any number)."""
         self.state = None
         self.samples = 0
+        self.n_tracks = self._n_given
 
 
 class SteadyStateCovariance:
