@@ -248,6 +248,36 @@ def test_polars_zero_copy_nulls_and_datetimes() -> None:
     assert _eq(out.get_column("x_vel").to_numpy(), want["x_vel"])
 
 
+def test_integer_and_nullable_columns_are_numbers_with_nulls_missed() -> None:
+    # pandas nullable Float64/Int64, Arrow-backed int64 and polars Int64
+    # columns (integers converted to float64, nulls = missed detections)
+    # give the estimates of the float64 column with NaN for the nulls.
+    df = make_long(seed=16, shuffle=False, missed=0.0)
+    xi = np.round(df["x"].to_numpy() * 10).astype(np.int64)
+    null = np.zeros(len(df), bool)
+    null[[2, 30, 31]] = True
+    want = per_track_expected(df.assign(x=np.where(null, np.nan, xi.astype(np.float64))), F, cols=("x",))
+    vals = [None if n else int(v) for v, n in zip(xi, null)]
+    for col in (pd.array(vals, dtype="Int64"), pd.array(vals, dtype="Float64"),
+                pd.array(vals, dtype=pd.ArrowDtype(pa.int64()))):
+        out = frame.filter(df.assign(x=col), id="id", time="t", columns="x", filter=F)
+        assert _eq(np.asarray(out["x_vel"], dtype=np.float64), want["x_vel"]), col.dtype
+    p = pl.from_pandas(df).with_columns(pl.Series("x", vals, dtype=pl.Int64))
+    out = frame.filter(p, id="id", time="t", columns="x", filter=F)
+    assert _eq(out.get_column("x_vel").to_numpy(), want["x_vel"])
+
+
+@pytest.mark.parametrize("lib", ["pandas", "polars"])
+def test_missing_datetime_names_the_row(lib) -> None:
+    df = make_long(seed=17)
+    ts = pd.Timestamp("2024-01-01") + pd.to_timedelta(df["t"], unit="s")
+    ts.iloc[5] = pd.NaT
+    src = df.assign(ts=ts)
+    src = src if lib == "pandas" else pl.from_pandas(src)
+    with pytest.raises(ValueError, match="time column 'ts': missing timestamp at row 5"):
+        frame.filter(src, id="id", time="ts", columns="x", filter=F)
+
+
 def test_pandas_datetimes() -> None:
     df = make_long(seed=12)
     ts = pd.Timestamp("2024-01-01", tz="Europe/Paris") + pd.to_timedelta(df["t"], unit="s")
