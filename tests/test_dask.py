@@ -207,9 +207,20 @@ def test_run_bad_input() -> None:
         adask.run(f, z, init="nope")
     with pytest.raises(ValueError, match="state is for"):
         adask.run(f, z, state=f.run(np.zeros((3, 2))).state)
+    with pytest.raises(TypeError, match=r"state must be a FilterState \(result.state\), got ndarray"):
+        adask.run(f, z, state=np.zeros((4, 8)))
     g = abkit.AlphaBetaFilter([0.3, 0.5, 0.7, 0.5], 0.1, 1.0)
     with pytest.raises(ValueError, match="one chunk along the tracks"):
         adask.run(g, z)
+
+
+def test_filter_frame_keyword_errors() -> None:
+    dd = pytest.importorskip("dask.dataframe")
+    ddf = dd.from_pandas(_long_frame(2), npartitions=2)
+    with pytest.raises(TypeError, match="filter_frame\\(\\) missing the keyword argument 'filter'"):
+        adask.filter_frame(ddf, id="id", columns="x")
+    with pytest.raises(ValueError, match="return_summary is not available with Dask"):
+        adask.filter_frame(ddf, id="id", columns="x", filter=abkit.AlphaBetaFilter(0.5, 0.2, 1.0), return_summary=True)
 
 
 def test_per_track_parameters_in_one_track_chunk(client) -> None:

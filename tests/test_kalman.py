@@ -167,6 +167,14 @@ def test_bad_run_inputs():
         kalman.KalmanFilter(1.0, 1.0, 0.0, 1.0)
     with pytest.raises(ValueError, match="n must"):
         kalman.gain_sequence(1.0, 1.0, 0.0, 1.0, 1.0, -1)
+    for bad in (0, -2, 1.5, True):
+        with pytest.raises(ValueError, match="threads must be a positive integer or None"):
+            kf.run(np.zeros((2, 5)), threads=bad)
+    kx = kalman.KalmanFilter([[1.0, 1.0], [0.0, 1.0]], [[1.0, 0.0]], np.eye(2) * 0.1, [[1.0]], P0=np.eye(2),
+                             x0=np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="x0 has 3 rows but z has 2 tracks"):
+        kx.run(np.zeros((2, 5)))
+    assert kx.run(np.zeros((3, 5))).states.shape == (2, 3, 5)
 
 
 @pytest.mark.parametrize("n,m", [(2, 1), (3, 2)])
