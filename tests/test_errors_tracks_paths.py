@@ -146,3 +146,26 @@ def test_smooth_track_paths_refuse_a_kalman_transient():
     fk = AlphaBetaFilter.from_noise(3.2, 32.0, 0.1, transient="kalman")
     with pytest.raises(ValueError, match=r"transient='kalman' does not support t, offsets, axes"):
         fk.smooth(np.zeros(20), offsets=[0, 10, 20])
+
+
+# ---------------------------------------------------------------------------
+# Zero samples with timestamps (the Python fuzzer, session 21: rows of no
+# samples made the track kernel divide by zero, a RuntimeError).
+
+@pytest.mark.parametrize("n_tracks", [1, 2, 5])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_zero_samples_with_t_give_an_empty_result(n_tracks, dtype):
+    z = np.zeros((n_tracks, 0), dtype=dtype)
+    t = np.zeros((n_tracks, 0))
+    for f in (F, AlphaBetaFilter.from_noise(3.2, 32.0, 0.1), abkit.AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.1)):
+        r = f.run(z, t=t)
+        assert r.states.shape == (f.n, n_tracks, 0) and r.states.dtype == dtype
+        assert r.state.n_tracks == n_tracks and np.all(r.state.x == 0)
+        # continuing from it is continuing from fresh tracks
+        z2 = np.cumsum(np.ones((n_tracks, 6), dtype=dtype), axis=1)
+        t2 = np.cumsum(np.ones((n_tracks, 6)), axis=1)
+        assert np.array_equal(f.run(z2, t=t2, state=r.state).states, f.run(z2, t=t2).states, equal_nan=True)
+    d = AlphaBetaFilter.from_noise(3.2, 32.0, 0.1)
+    assert d.smooth(z, t=t).states.shape == (2, n_tracks, 0)
+    r = F.run(np.zeros((n_tracks, 0, 2), dtype=dtype), t=t, axes=2)
+    assert r.states.shape == (2, n_tracks, 0, 2)

@@ -199,3 +199,18 @@ def test_long_run_switches_to_the_limiting_gain_exactly(n, m):
             close(res.states[:, i], xs, 1e-10)
             close(res.residuals[i], es.reshape(res.residuals[i].shape), 1e-10)
             close(res.P_final[i], Pf, 1e-10)
+
+
+def test_private_bindings_reject_zero_dimensions():
+    # The Python layer never passes n = 0 or m = 0; the bindings check it
+    # themselves (a remainder by n = 0 before, caught only as a panic).
+    from abkit import _abkit
+
+    e = np.zeros(0)
+    for n, m in ((0, 1), (1, 0), (0, 0)):
+        with pytest.raises(ValueError, match="sizes do not match n, m"):
+            _abkit.kalman_gain_sequence(n, m, e, e, e, e, e, 3)
+    # n = m = 0 with a non-empty x0: the size check of x0 took x0.len() % n
+    z = np.zeros((1, 3, 0))
+    with pytest.raises(ValueError, match="sizes do not match n, m"):
+        _abkit.kalman_run(z, 0, 0, e, e, e, e, np.zeros(2), e, np.zeros((0, 1, 3)), np.zeros((1, 0, 0)))

@@ -107,10 +107,11 @@ impl<'a, T: Copy> Samples<'a, T> {
         self.len() == 0
     }
 
-    /// Address of flat sample `g`, component 0.
+    /// Address of flat sample `g`, component 0 (an empty layout, e.g. rows
+    /// of no samples, has only `g = 0`: its base).
     #[inline]
     pub(crate) fn addr(&self, g: usize) -> isize {
-        let (r, p) = if self.n_rows <= 1 {
+        let (r, p) = if self.n_rows <= 1 || self.row_len == 0 {
             (0, g)
         } else {
             (g / self.row_len, g % self.row_len)

@@ -37,7 +37,9 @@ fn check(
     r: &[f64],
     p0: &[f64],
 ) -> PyResult<()> {
-    if phi.len() != n * n
+    if n == 0
+        || m == 0
+        || phi.len() != n * n
         || h.len() != m * n
         || q.len() != n * n
         || r.len() != m * m

@@ -569,3 +569,53 @@ fn tracks_without_times_equal_the_scalar_track_code() {
         }
     }
 }
+
+#[test]
+fn rows_of_no_samples_are_an_empty_result_not_a_panic() {
+    // A rectangular (n_tracks, 0) batch with timestamps: rows of length 0
+    // (found by the Python fuzzer: the sample address divided by the row
+    // length). Every track is empty; the states stay fresh.
+    let laws = [AbDesign::new(0.3)];
+    let f = ab_filter(&laws);
+    let empty: &[f64] = &[];
+    for n_tracks in [1usize, 2, 3] {
+        let rows = |data: &'static [f64]| Samples {
+            data,
+            base: 0,
+            s_row: 0,
+            s_sample: 1,
+            s_comp: 1,
+            row_len: 0,
+            n_rows: n_tracks,
+            m: 1,
+        };
+        let (zs, ts) = (rows(empty), rows(empty));
+        let offsets = vec![0i64; n_tracks + 1];
+        let mut states = vec![TrackState::default(); n_tracks];
+        let mut counts = vec![[0i64; 2]; n_tracks];
+        let mut out: Vec<f64> = Vec::new();
+        for t in [Some(&ts), None] {
+            filter_tracks(
+                &f,
+                &opts(Init::TwoPoint, None, false),
+                &offsets,
+                &zs,
+                t,
+                &mut states,
+                &mut out,
+                None,
+                &mut counts,
+                false,
+                &NoPost,
+            )
+            .unwrap();
+            // bit for bit (the default's timestamps are NaN)
+            let bits = |s: &TrackState| {
+                let a: [f64; 4] = [s.phase, s.since, s.t_last, s.t_held];
+                (s.x.map(f64::to_bits), a.map(f64::to_bits))
+            };
+            assert!(states.iter().all(|s| bits(s) == bits(&TrackState::default())));
+            assert!(counts.iter().all(|c| *c == [0, 0]));
+        }
+    }
+}
