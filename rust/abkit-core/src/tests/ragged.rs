@@ -614,7 +614,9 @@ fn rows_of_no_samples_are_an_empty_result_not_a_panic() {
                 let a: [f64; 4] = [s.phase, s.since, s.t_last, s.t_held];
                 (s.x.map(f64::to_bits), a.map(f64::to_bits))
             };
-            assert!(states.iter().all(|s| bits(s) == bits(&TrackState::default())));
+            assert!(states
+                .iter()
+                .all(|s| bits(s) == bits(&TrackState::default())));
             assert!(counts.iter().all(|c| *c == [0, 0]));
         }
     }
