@@ -66,8 +66,8 @@ class FeedTracker:
     ----------
     filt : FixedGainFilter
         A scalar-measurement filter (``AlphaBetaFilter``,
-        ``AlphaBetaGammaFilter``, a Singer ``tracking_filter``, ...;
-        without ``transient="kalman"``, a ``ValueError``). With
+        ``AlphaBetaGammaFilter``, a Singer ``tracking_filter``, ...; not
+        one with ``transient="kalman"``: a ``ValueError``). With
         timestamps, filters designed from noise use the steady-state gains
         of each step (see ``docs/tracks.md``).
     axes : int, optional
