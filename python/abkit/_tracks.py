@@ -80,6 +80,14 @@ def check_max_gap(max_gap: Any, has_t: bool) -> Optional[float]:
     return g
 
 
+def check_steady_state(f: "FixedGainFilter", who: str) -> None:
+    """``ValueError`` for a filter with ``transient="kalman"`` in a path that
+    runs only the steady-state filter (``who`` names the path)."""
+    if f._transient is not None:
+        raise ValueError(f"{who} runs the steady-state filter: a filter with transient='kalman' is not "
+                         "supported (its exact Kalman start runs in filter.run(z) on whole tracks)")
+
+
 def check_on_duplicate(on_duplicate: Any) -> bool:
     if on_duplicate not in ON_DUPLICATE:
         raise ValueError(f"on_duplicate must be 'raise' or 'drop', got {on_duplicate!r}")
@@ -358,8 +366,7 @@ def run_feed(
     (``k``: the sample within the track)."""
     if f.m != 1:
         raise ValueError("the feed kernel runs scalar-measurement filters (m = 1)")
-    if f._transient is not None:
-        raise ValueError("transient='kalman' does not support t, offsets, axes, max_gap or on_duplicate")
+    check_steady_state(f, "the feed kernel")
     if threads is not None and (not isinstance(threads, (int, np.integer)) or isinstance(threads, bool) or threads < 1):
         raise ValueError(f"threads must be a positive integer or None, got {threads!r}")
     drop = check_on_duplicate(on_duplicate)

@@ -116,9 +116,7 @@ class FeedTracker:
             raise ValueError(f"axes must be a positive integer, got {axes!r}")
         if not isinstance(init, str) or init not in ("two-point", "first"):
             raise ValueError(f"init must be 'two-point' or 'first', got {init!r}")
-        if filt._transient is not None:
-            raise ValueError("FeedTracker runs the steady-state filter: a filter with transient='kalman' is not "
-                             "supported (its exact Kalman start runs in filter.run(z) on whole tracks)")
+        _tracks.check_steady_state(filt, "FeedTracker")
         _tracks.check_on_duplicate(on_duplicate)
         _tracks.check_max_gap(max_gap, True)
         filt._check_params(1)  # one parameter set: tracks come and go

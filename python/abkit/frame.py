@@ -17,7 +17,7 @@ import numpy as np
 
 from . import _abkit
 from .filters import FilterResult, FilterState, FixedGainFilter
-from ._tracks import check_max_gap, check_on_duplicate
+from ._tracks import check_max_gap, check_on_duplicate, check_steady_state
 
 __all__ = ["filter", "FrameSummary"]
 
@@ -514,9 +514,7 @@ def filter(
         raise TypeError(f"filter must be an abkit filter, got {type(filter).__name__}")
     if filter.m != 1:
         raise ValueError(f"filter has {filter.m} measurements per sample; abkit.frame.filter runs scalar-measurement filters (one per column)")
-    if filter._transient is not None:
-        raise ValueError("abkit.frame.filter runs the steady-state filter: a filter with transient='kalman' is not "
-                         "supported (its exact Kalman start runs in filter.run(z) on whole tracks)")
+    check_steady_state(filter, "abkit.frame.filter")
     for what, c in (("id", id), ("time", time)):
         if not isinstance(c, str) and not (what == "time" and c is None):
             raise TypeError(f"{what} must be a column name (str){'' if what == 'id' else ' or None'}, got {type(c).__name__}")
