@@ -617,6 +617,24 @@ fn prefetch<T>(p: *const T) {
     let _ = p;
 }
 
+/// Orders this thread's streamed (non-temporal) stores before its later
+/// stores (`sfence`): streamed stores are weakly ordered, so a task that made
+/// them fences before its outputs are read, by the thread that waits for the
+/// task (rayon's completion signal is an ordinary store) or by later code of
+/// its own. The general lanes leave this to their callers, once per task:
+/// a fence per group of four tracks waited for the write-combining buffers
+/// every 400 samples on 100,000 x 100 (4 % of the time; docs/benchmarks.md,
+/// session 22).
+#[inline]
+fn store_fence() {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: `sfence` is part of SSE, which every x86_64 CPU has; it only
+    // orders stores.
+    unsafe {
+        std::arch::x86_64::_mm_sfence()
+    };
+}
+
 /// Outputs of at least this many bytes are written with non-temporal
 /// (cache-bypassing) stores by the vector lanes. (64 MiB until 2026-12-02:
 /// on Zen 3 the row lanes' ordinary stores ran 3-4 x slower than streamed
@@ -1145,16 +1163,21 @@ pub fn run_batch_cols<T: IoFloat, const N: usize>(
         if jobs.is_empty() {
             break;
         }
+        // Each task fences its streamed stores once, at its end.
         if parallel && jobs.len() > gs {
             // Enough groups per task that scheduling overhead stays small.
             let min_groups = 1.max(65_536 / (gs * n_samples).max(1));
-            jobs.par_chunks_mut(gs)
-                .with_min_len(min_groups)
-                .for_each(&group);
+            jobs.par_chunks_mut(gs * min_groups).for_each(|task| {
+                for g in task.chunks_mut(gs) {
+                    group(g);
+                }
+                store_fence();
+            });
         } else {
             for g in jobs.chunks_mut(gs) {
                 group(g);
             }
+            store_fence();
         }
     }
     Ok(())
@@ -1694,12 +1717,14 @@ fn gen_split<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
                 // SAFETY: `gen_group_size` said 8 only if `simd::gen8_enabled`
                 // checked AVX-512F and FMA on this CPU.
                 unsafe { simd::gen_lanes8::<T, N, M>(&[c; L], xs, 0, ls, &rows, grp, None, nt) };
+                store_fence();
                 return;
             }
             let rows: [&[T]; GEN_LANES] = std::array::from_fn(|l| zrows[gi * GEN_LANES + l]);
             let mut xl: [[f64; N]; GEN_LANES] = std::array::from_fn(|l| xs[l]);
             gen_lanes_entry::<T, N, M, FMA>([c; GEN_LANES], &mut xl, 0, ls, rows, grp, None, nt);
             xs.copy_from_slice(&xl);
+            store_fence();
         };
         if parallel {
             jobs.par_chunks_mut(gl)
@@ -1889,6 +1914,8 @@ pub fn general_cols<T: IoFloat, const N: usize, const M: usize>(
         |group| {
             gen_group_dispatch(gains, &consts, init, z, group, parallel);
             if let Some(sm) = &smoother {
+                // The smoother reads the filtered rows (streamed stores).
+                store_fence();
                 for (i, _, o) in group.iter_mut() {
                     let g = &gains[if gains.len() == 1 { 0 } else { *i }];
                     let a = &sm.a[if sm.a.len() == 1 { 0 } else { *i }];
