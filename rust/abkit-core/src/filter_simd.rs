@@ -882,8 +882,15 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             k[l] = k0 + ((64 - addr % 64) % 64) / size;
         }
     }
-    let v4 =
-        |f: &dyn Fn(&GenConst<N, M>) -> f64| _mm256_set_pd(f(cs[3]), f(cs[2]), f(cs[1]), f(cs[0]));
+    // One set of gains for the four lanes (the usual case): broadcasts.
+    let shared = cs.iter().all(|c| std::ptr::eq(*c, cs[0]));
+    let v4 = |f: &dyn Fn(&GenConst<N, M>) -> f64| {
+        if shared {
+            _mm256_set1_pd(f(cs[0]))
+        } else {
+            _mm256_set_pd(f(cs[3]), f(cs[2]), f(cs[1]), f(cs[0]))
+        }
+    };
     let g = GenMats::<N, M> {
         a: std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.a[i][j]))),
         phi: std::array::from_fn(|i| std::array::from_fn(|j| v4(&|c| c.phi[i][j]))),
@@ -926,9 +933,10 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
         std::array::from_fn(|i| nt && (out[l][i] as usize + k[l] * size).is_multiple_of(64))
     });
     let zero = _mm256_setzero_pd();
-    // Block outputs (every entry read is written in the same block; made
-    // once: zeroing it per block cost a 1.5 KiB memset per block).
-    let mut outv = [[zero; BMAX]; N];
+    // Block outputs: every entry read is written earlier in the same block
+    // (entries `0..bs` of each component), so they are not initialised (a
+    // 1.5 KiB memset per group of four short rows otherwise).
+    let mut outv = [[std::mem::MaybeUninit::<__m256d>::uninit(); BMAX]; N];
     // Each lane's and component's output at the current block's first
     // sample, advanced by a block at a time: one pointer load per store
     // instead of the address arithmetic of `k[l] + b bs + q L` per store.
@@ -944,7 +952,9 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
         ($l:ident, $i:ident, $nt:expr) => {
             for ($i, ov) in outv.iter().enumerate() {
                 for q in 0..bs / L {
-                    let mut r: [__m256d; L] = std::array::from_fn(|s| ov[q * L + s]);
+                    // SAFETY: entries q L + s < bs were written in this block.
+                    let mut r: [__m256d; L] =
+                        std::array::from_fn(|s| unsafe { ov[q * L + s].assume_init() });
                     transpose4(&mut r);
                     for $l in 0..L {
                         // SAFETY: at[l][i] + q L + L <= out[l][i] + k[l] + (b + 1) bs
@@ -989,7 +999,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
             for (s, zsv) in zs.iter().enumerate() {
                 x = gen_vstep(&g, &x, zsv);
                 for i in 0..N {
-                    outv[i][h * L + s] = x[i];
+                    outv[i][h * L + s] = std::mem::MaybeUninit::new(x[i]);
                 }
             }
         }
