@@ -905,12 +905,14 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
         .unwrap_or(0);
     // Each lane's tail (after the last whole block): samples from[l]..n.
     let from: [usize; L] = std::array::from_fn(|l| (k[l] + blocks * bs).min(n));
-    // Streamed rows: the lines that the heads and tails write with ordinary
-    // stores (the head's line, every line of the tail: up to two when the
-    // lanes' alignments differ) of the output rows sixteen rows ahead, which
-    // lie at the same offsets from a line (16 rows of `n` samples are whole
-    // lines), fetched for ownership now; else each such store waits for its
-    // line from memory and holds up the stores behind it (as in `gen_lanes8`).
+    // Streamed rows: the lines that the start-up, heads and tails write with
+    // ordinary stores (the row's first line, every line of the tail: up to
+    // two when the lanes' alignments differ) of the output rows sixteen rows
+    // ahead, fetched for ownership now; else each such store waits for its
+    // line from memory and holds up the stores behind it (as in
+    // `gen_lanes8`). For contiguous rows of `n` samples those lines lie at
+    // the same offsets as this group's (16 rows are whole lines); otherwise
+    // the hints are merely less useful.
     if nt && align {
         if let Some((_, dout)) = ahead {
             for (l, ol) in out.iter().enumerate() {
