@@ -1163,21 +1163,19 @@ pub fn run_batch_cols<T: IoFloat, const N: usize>(
         if jobs.is_empty() {
             break;
         }
-        // Each task fences its streamed stores once, at its end.
-        if parallel && jobs.len() > gs {
-            // Enough groups per task that scheduling overhead stays small.
-            let min_groups = 1.max(65_536 / (gs * n_samples).max(1));
-            jobs.par_chunks_mut(gs * min_groups).for_each(|task| {
-                for g in task.chunks_mut(gs) {
-                    group(g);
-                }
-                store_fence();
-            });
-        } else {
-            for g in jobs.chunks_mut(gs) {
+        // A task: its groups, then one fence for its streamed stores.
+        let task = |t: &mut [Job<'_, T, N>]| {
+            for g in t.chunks_mut(gs) {
                 group(g);
             }
             store_fence();
+        };
+        if parallel && jobs.len() > gs {
+            // Enough groups per task that scheduling overhead stays small.
+            let min_groups = 1.max(65_536 / (gs * n_samples).max(1));
+            jobs.par_chunks_mut(gs * min_groups).for_each(task);
+        } else {
+            task(&mut jobs);
         }
     }
     Ok(())
