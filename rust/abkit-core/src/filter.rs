@@ -32,6 +32,8 @@ use rayon::prelude::*;
 #[cfg(target_arch = "x86_64")]
 #[path = "filter_avx2.rs"]
 mod avx2;
+#[path = "filter_f32.rs"]
+pub mod f32arith;
 #[cfg(target_arch = "x86_64")]
 #[path = "filter_flat.rs"]
 mod flat;
@@ -1936,29 +1938,10 @@ pub fn filter_ab<T: IoFloat>(
     parallel: bool,
     smoother: Option<Smoother<'_, 2>>,
 ) -> Result<()> {
-    check_params(params.len(), z)?;
-    // The core is callable directly: NaN/Inf gains or a non-positive period
-    // would give silently meaningless (and chunking-dependent) output.
-    for &(a, b, t) in params {
-        for (name, v) in [("alpha", a), ("beta", b)] {
-            if !v.is_finite() {
-                return Err(Error::domain(name, "finite", v));
-            }
-        }
-        if !(t.is_finite() && t > 0.0) {
-            return Err(Error::domain("T", "finite and > 0", t));
-        }
-    }
+    check_ab(params, z)?;
     if let Some(sm) = &smoother {
         check_params(sm.a.len(), z)?;
     }
-    if z.m != 1 {
-        return Err(Error::Shape(format!(
-            "alpha-beta needs scalar measurements, got {}",
-            z.m
-        )));
-    }
-    z.validate()?;
     #[cfg(target_arch = "x86_64")]
     if resid.is_none() {
         if let Some(r) = ab_flat_batch(params, init, z, states, out, parallel, smoother.as_ref()) {
@@ -1986,6 +1969,30 @@ pub fn filter_ab<T: IoFloat>(
             }
         },
     )
+}
+
+/// Checks of [`filter_ab`]'s (and [`f32arith::filter_ab_f32`]'s) arguments.
+fn check_ab<T: IoFloat>(params: &[(f64, f64, f64)], z: &Measurements<'_, T>) -> Result<()> {
+    check_params(params.len(), z)?;
+    // The core is callable directly: NaN/Inf gains or a non-positive period
+    // would give silently meaningless (and chunking-dependent) output.
+    for &(a, b, t) in params {
+        for (name, v) in [("alpha", a), ("beta", b)] {
+            if !v.is_finite() {
+                return Err(Error::domain(name, "finite", v));
+            }
+        }
+        if !(t.is_finite() && t > 0.0) {
+            return Err(Error::domain("T", "finite and > 0", t));
+        }
+    }
+    if z.m != 1 {
+        return Err(Error::Shape(format!(
+            "alpha-beta needs scalar measurements, got {}",
+            z.m
+        )));
+    }
+    z.validate()
 }
 
 /// Short contiguous rows (fewer than [`SIMD_MIN_SAMPLES`] samples, no

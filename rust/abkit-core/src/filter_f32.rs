@@ -1,0 +1,600 @@
+//! Alpha-beta filtering of `f32` data in `f32` arithmetic.
+//!
+//! The default kernels filter `f32` data in `f64` arithmetic and round each
+//! output once (the results are the `f64` results rounded). That keeps AVX2
+//! CPUs compute bound on `f32` data (four `f64` slots per register, widening
+//! and narrowing conversions: 0.3-0.5 of the `f32` memory ceiling;
+//! docs/benchmarks.md, sessions 21-23). This module runs the same step in
+//! `f32` arithmetic, eight slots per AVX2 register, which the memory keeps
+//! up with.
+//!
+//! The step is [`super::ab_step`]'s in `f32` (`x_p = x + T v`,
+//! `x' = (1 - alpha) x_p + alpha z`, `v' = (v + g2 z) - g2 x_p`, fused
+//! multiply-adds where the CPU has them, a NaN `z` coasting), with the
+//! constants `T`, `alpha`, `1 - alpha` and `g2 = beta / T` each computed in
+//! `f64` and rounded once to `f32`. The start-up is [`super::run_track`]'s
+//! (first valid sample; two-point velocity `(z2 - z1) / (gap T)`) in `f32`.
+//! The state carried between calls holds `f32` values (exact in the `f64`
+//! [`TrackState`]), so a track run in chunks is bit-identical to one call,
+//! and every path (scalar loop, AVX2 rows) runs the same operations in the
+//! same order: results are bit-identical whatever the thread count, the
+//! batch a track is in or the chunking.
+//!
+//! Accuracy: each step rounds to `f32`, so the estimates drift from the
+//! `f64`-arithmetic ones by about `0.3 / alpha` `f32` epsilons of the
+//! array's scale (`bench/f32_arith_accuracy.py`, docs/benchmarks.md
+//! session 22), against 0.5 ulp for the default kernels.
+//!
+//! Rows (`x86_64` with AVX2 and FMA): groups of [`LANES`] = 16 contiguous
+//! rows in two 8-slot registers ([`avx2::rows16`]), blocks of 16 steps:
+//! per register, two 8 x 8 transposes of the rows' `z` into a column stage,
+//! the steps of both registers interleaved (two independent dependency
+//! chains), then the outputs' columns transposed back into rows. Outputs
+//! too big for the caches are written with non-temporal stores, each lane
+//! first stepping (scalar) to a sample whose `x` line starts a cache line.
+
+use super::{Init, Job, Measurements, TrackOut, TrackState};
+use crate::Result;
+
+/// Tracks per group of the row kernel (two registers of eight slots).
+pub const LANES: usize = 16;
+
+/// Steps per block of the row kernel (one 64-byte line of `f32` per lane).
+const BLOCK: usize = 16;
+
+/// Rows shorter than this run the scalar loop (the vector loop's heads and
+/// tails would cost more than it saves).
+const MIN_VECTOR_SAMPLES: usize = 4 * BLOCK;
+
+/// Constants of one alpha-beta filter in `f32`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct C32 {
+    pub(crate) t: f32,
+    pub(crate) alpha: f32,
+    pub(crate) c1: f32,
+    pub(crate) g2: f32,
+}
+
+impl C32 {
+    /// Each constant computed in `f64` and rounded once.
+    pub(crate) fn new(alpha: f64, beta: f64, t: f64) -> Self {
+        C32 {
+            t: t as f32,
+            alpha: alpha as f32,
+            c1: (1.0 - alpha) as f32,
+            g2: (beta / t) as f32,
+        }
+    }
+}
+
+#[inline(always)]
+fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+/// One alpha-beta step in `f32` (the operations of [`super::ab_step`]):
+/// returns `(x', v', residual)`; a NaN `z` coasts.
+#[inline(always)]
+pub(crate) fn step<const FMA: bool>(c: &C32, x: f32, v: f32, z: f32) -> (f32, f32, f32) {
+    let xp = madd::<FMA>(c.t, v, x);
+    let e = z - xp;
+    let valid = !z.is_nan();
+    let zz = if valid { z } else { 0.0 };
+    let c1 = if valid { c.c1 } else { 1.0 };
+    let g = if valid { c.g2 } else { 0.0 };
+    let w = madd::<FMA>(g, zz, v);
+    (madd::<FMA>(c1, xp, c.alpha * zz), madd::<FMA>(-g, xp, w), e)
+}
+
+/// Start-up of one track over its first samples (the logic of
+/// [`super::run_track`] for alpha-beta, in `f32`): returns the number of
+/// samples consumed; the track is running (`st.phase == 2`) from there
+/// unless all `n` were consumed.
+fn start(
+    c: &C32,
+    init: Init,
+    st: &mut TrackState,
+    n: usize,
+    z: &impl Fn(usize) -> f32,
+    o: &mut TrackOut<'_, f32, 2>,
+) -> usize {
+    let [xs, vs] = &mut o.states;
+    let mut x0 = st.x[0] as f32;
+    let mut k = 0;
+    while st.phase < 2.0 && k < n {
+        let zk = z(k);
+        if let Some(r) = o.resid.as_deref_mut() {
+            r[k] = f32::NAN;
+        }
+        let valid = !zk.is_nan();
+        let (ox, ov) = match (st.phase == 0.0, valid) {
+            (true, false) => (f32::NAN, f32::NAN),
+            (true, true) => {
+                x0 = zk;
+                st.x[1] = 0.0;
+                if init == Init::First {
+                    st.phase = 2.0;
+                    (zk, 0.0)
+                } else {
+                    st.phase = 1.0;
+                    st.since = 0.0;
+                    (zk, f32::NAN)
+                }
+            }
+            (false, false) => {
+                st.since += 1.0;
+                (x0, f32::NAN)
+            }
+            (false, true) => {
+                let gap = (st.since + 1.0) as f32;
+                let v = (zk - x0) / (gap * c.t);
+                x0 = zk;
+                st.x[1] = v as f64;
+                st.phase = 2.0;
+                st.since = 0.0;
+                (zk, v)
+            }
+        };
+        xs[k] = ox;
+        vs[k] = ov;
+        st.x[0] = x0 as f64;
+        k += 1;
+    }
+    k
+}
+
+/// Steady-state loop of one track over samples `k0..n`.
+#[inline(always)]
+fn run_loop<const FMA: bool>(
+    c: &C32,
+    st: &mut TrackState,
+    k0: usize,
+    n: usize,
+    z: impl Fn(usize) -> f32,
+    o: &mut TrackOut<'_, f32, 2>,
+) {
+    let (mut x, mut v) = (st.x[0] as f32, st.x[1] as f32);
+    let [xs, vs] = &mut o.states;
+    let (xs, vs) = (&mut xs[..n], &mut vs[..n]);
+    match o.resid.as_deref_mut() {
+        None => {
+            for k in k0..n {
+                let (x1, v1, _) = step::<FMA>(c, x, v, z(k));
+                (x, v) = (x1, v1);
+                xs[k] = x;
+                vs[k] = v;
+            }
+        }
+        Some(r) => {
+            let r = &mut r[..n];
+            for k in k0..n {
+                let (x1, v1, e) = step::<FMA>(c, x, v, z(k));
+                (x, v) = (x1, v1);
+                xs[k] = x;
+                vs[k] = v;
+                r[k] = e;
+            }
+        }
+    }
+    st.x[0] = x as f64;
+    st.x[1] = v as f64;
+}
+
+/// Alpha-beta filtering of a group of up to [`LANES`] tracks.
+#[inline(always)]
+fn group<const FMA: bool>(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, f32>,
+    jobs: &mut [Job<'_, f32, 2>],
+    nt: bool,
+) {
+    let n = z.n_samples;
+    let konst = |i: usize| {
+        let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
+        C32::new(a, b, t)
+    };
+    let zrow = |i: usize| z.row(i);
+    let zat = |i: usize| move |k: usize| z.at(i, k, 0) as f32;
+    let mut k0 = [0usize; LANES];
+    for (l, (i, st, o)) in jobs.iter_mut().enumerate() {
+        let c = konst(*i);
+        let len = match zrow(*i) {
+            Some(row) => start(&c, init, st, n, &|k| row[k], o),
+            None => start(&c, init, st, n, &zat(*i), o),
+        };
+        if l < LANES {
+            k0[l] = len;
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    if FMA
+        && jobs.len() == LANES
+        && super::simd::avx2_available()
+        && jobs.iter().enumerate().all(|(l, (i, st, o))| {
+            st.phase == 2.0
+                && o.resid.is_none()
+                && zrow(*i).is_some()
+                && n >= k0[l] + MIN_VECTOR_SAMPLES
+        })
+    {
+        // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
+        unsafe { rows_fma(&konst, &k0, n, z, jobs, nt) };
+        return;
+    }
+    for (l, (i, st, o)) in jobs.iter_mut().enumerate() {
+        if st.phase < 2.0 {
+            continue;
+        }
+        let c = konst(*i);
+        let from = if l < LANES { k0[l] } else { 0 };
+        match zrow(*i) {
+            Some(row) => run_loop::<FMA>(&c, st, from, n, |k| row[k], o),
+            None => run_loop::<FMA>(&c, st, from, n, zat(*i), o),
+        }
+    }
+}
+
+/// The vector rows of a full group: each lane steps (scalar) to its vector
+/// start (with streamed outputs, a sample whose `x` output starts a cache
+/// line), the lanes run whole blocks together, then each its tail.
+///
+/// # Safety
+/// AVX2 and FMA are available; every job is running, has a contiguous `z`
+/// row and no residuals, and `n >= k0[l] + MIN_VECTOR_SAMPLES`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn rows_fma(
+    konst: &impl Fn(usize) -> C32,
+    k0: &[usize; LANES],
+    n: usize,
+    z: &Measurements<'_, f32>,
+    jobs: &mut [Job<'_, f32, 2>],
+    nt: bool,
+) {
+    let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
+    let mut p = [0usize; LANES];
+    let mut rows: [&[f32]; LANES] = [&[]; LANES];
+    // Streamed stores need the x and v rows at the same line offset.
+    let nt = nt
+        && jobs.iter().all(|(_, _, o)| {
+            let [a, b] = &o.states;
+            (b.as_ptr() as usize)
+                .wrapping_sub(a.as_ptr() as usize)
+                .is_multiple_of(64)
+        });
+    let mut x = [0f32; LANES];
+    let mut v = [0f32; LANES];
+    for (l, (i, st, o)) in jobs.iter_mut().enumerate() {
+        c[l] = konst(*i);
+        rows[l] = z.row(*i).unwrap_or(&[]);
+        let mut to = k0[l];
+        if nt {
+            let x = o.states[0].as_ptr() as usize;
+            while !(x + 4 * to).is_multiple_of(64) {
+                to += 1;
+            }
+        }
+        p[l] = to;
+        x[l] = st.x[0] as f32;
+        v[l] = st.x[1] as f32;
+    }
+    // The heads, the lanes interleaved (their dependency chains overlap).
+    steps(&c, &mut x, &mut v, *k0, &p, &rows, jobs);
+    let blocks = (0..LANES).map(|l| (n - p[l]) / BLOCK).min().unwrap_or(0);
+    let mut zp = [std::ptr::null::<f32>(); LANES];
+    let mut xp = [std::ptr::null_mut::<f32>(); LANES];
+    let mut vp = [std::ptr::null_mut::<f32>(); LANES];
+    for (l, (_, _, o)) in jobs.iter_mut().enumerate() {
+        let [a, b] = &mut o.states;
+        // In bounds: p[l] + BLOCK * blocks <= n = the rows' lengths.
+        zp[l] = rows[l][p[l]..].as_ptr();
+        xp[l] = a[p[l]..].as_mut_ptr();
+        vp[l] = b[p[l]..].as_mut_ptr();
+    }
+    // SAFETY: AVX2 and FMA (this function's features); every pointer has
+    // `BLOCK * blocks` elements from it; `nt` only with `x` lines aligned at
+    // every lane's start (stepped above) and `v` at the same line offset.
+    unsafe { avx2::rows16(&c, &mut x, &mut v, &zp, &xp, &vp, blocks, nt) };
+    // The tails, interleaved too.
+    let from: [usize; LANES] = std::array::from_fn(|l| p[l] + BLOCK * blocks);
+    steps(&c, &mut x, &mut v, from, &[n; LANES], &rows, jobs);
+    for (l, (_, st, _)) in jobs.iter_mut().enumerate() {
+        st.x[0] = x[l] as f64;
+        st.x[1] = v[l] as f64;
+    }
+}
+
+/// Scalar steps of the lanes of a full group, lane `l` over samples
+/// `from[l]..to[l]`, the lanes interleaved step by step (the same
+/// operations as [`run_loop`] per lane).
+#[inline(always)]
+fn steps(
+    c: &[C32; LANES],
+    x: &mut [f32; LANES],
+    v: &mut [f32; LANES],
+    from: [usize; LANES],
+    to: &[usize; LANES],
+    rows: &[&[f32]; LANES],
+    jobs: &mut [Job<'_, f32, 2>],
+) {
+    let most = (0..LANES).map(|l| to[l] - from[l]).max().unwrap_or(0);
+    for s in 0..most {
+        for (l, (_, _, o)) in jobs.iter_mut().enumerate() {
+            let k = from[l] + s;
+            if k < to[l] {
+                let (x1, v1, _) = step::<true>(&c[l], x[l], v[l], rows[l][k]);
+                x[l] = x1;
+                v[l] = v1;
+                o.states[0][k] = x1;
+                o.states[1][k] = v1;
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+fn group_fma(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, f32>,
+    jobs: &mut [Job<'_, f32, 2>],
+    nt: bool,
+) {
+    group::<true>(params, init, z, jobs, nt)
+}
+
+fn group_dispatch(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, f32>,
+    jobs: &mut [Job<'_, f32, 2>],
+    nt: bool,
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if super::uses_fma() {
+            // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
+            unsafe { group_fma(params, init, z, jobs, nt) };
+            return;
+        }
+        group::<false>(params, init, z, jobs, nt)
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        group::<true>(params, init, z, jobs, nt)
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        group::<false>(params, init, z, jobs, nt)
+    }
+}
+
+/// Filter a batch of `f32` measurements with alpha-beta filters in `f32`
+/// arithmetic (`params[i] = (alpha, beta, T)`, one for all tracks or one
+/// per track). Same arguments and layout as [`super::filter_ab`] (no
+/// smoother).
+pub fn filter_ab_f32(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, f32>,
+    states: &mut [TrackState],
+    out: &mut [f32],
+    resid: Option<&mut [f32]>,
+    parallel: bool,
+) -> Result<()> {
+    super::check_ab(params, z)?;
+    let nt = super::streamed::<f32>(2 * z.n_tracks * z.n_samples * 4, true);
+    super::run_batch::<f32, 2>(
+        z.n_tracks,
+        z.n_samples,
+        1,
+        states,
+        out,
+        resid,
+        parallel,
+        LANES,
+        |jobs| group_dispatch(params, init, z, jobs, nt),
+    )
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{BLOCK, C32, LANES};
+    use std::arch::x86_64::*;
+
+    /// In-place transpose of the 8 x 8 matrix whose rows are `r`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn tr8(r: &mut [__m256; 8]) {
+        let t0 = _mm256_unpacklo_ps(r[0], r[1]);
+        let t1 = _mm256_unpackhi_ps(r[0], r[1]);
+        let t2 = _mm256_unpacklo_ps(r[2], r[3]);
+        let t3 = _mm256_unpackhi_ps(r[2], r[3]);
+        let t4 = _mm256_unpacklo_ps(r[4], r[5]);
+        let t5 = _mm256_unpackhi_ps(r[4], r[5]);
+        let t6 = _mm256_unpacklo_ps(r[6], r[7]);
+        let t7 = _mm256_unpackhi_ps(r[6], r[7]);
+        let s0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+        let s1 = _mm256_shuffle_ps::<0xEE>(t0, t2);
+        let s2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+        let s3 = _mm256_shuffle_ps::<0xEE>(t1, t3);
+        let s4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+        let s5 = _mm256_shuffle_ps::<0xEE>(t4, t6);
+        let s6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+        let s7 = _mm256_shuffle_ps::<0xEE>(t5, t7);
+        r[0] = _mm256_permute2f128_ps::<0x20>(s0, s4);
+        r[1] = _mm256_permute2f128_ps::<0x20>(s1, s5);
+        r[2] = _mm256_permute2f128_ps::<0x20>(s2, s6);
+        r[3] = _mm256_permute2f128_ps::<0x20>(s3, s7);
+        r[4] = _mm256_permute2f128_ps::<0x31>(s0, s4);
+        r[5] = _mm256_permute2f128_ps::<0x31>(s1, s5);
+        r[6] = _mm256_permute2f128_ps::<0x31>(s2, s6);
+        r[7] = _mm256_permute2f128_ps::<0x31>(s3, s7);
+    }
+
+    /// One register's constants.
+    #[derive(Clone, Copy)]
+    struct K {
+        t: __m256,
+        alpha: __m256,
+        c1: __m256,
+        g2: __m256,
+    }
+
+    /// A step without missed samples: [`super::step`]'s operations with
+    /// `valid` true in every slot.
+    #[inline(always)]
+    fn clean(k: &K, x: &mut __m256, v: &mut __m256, z: __m256) {
+        // SAFETY (all intrinsics here): the callers enable AVX2 and FMA.
+        unsafe {
+            let xp = _mm256_fmadd_ps(k.t, *v, *x);
+            let w = _mm256_fmadd_ps(k.g2, z, *v);
+            *x = _mm256_fmadd_ps(k.c1, xp, _mm256_mul_ps(k.alpha, z));
+            // -(g2 xp) + w rounded once: the scalar fma(-g2, xp, w).
+            *v = _mm256_fnmadd_ps(k.g2, xp, w);
+        }
+    }
+
+    /// A step where some `z` may be NaN: [`super::step`]'s selects.
+    #[inline(always)]
+    fn masked(k: &K, one: __m256, x: &mut __m256, v: &mut __m256, z: __m256) {
+        // SAFETY (all intrinsics here): the callers enable AVX2 and FMA.
+        unsafe {
+            let xp = _mm256_fmadd_ps(k.t, *v, *x);
+            let ok = _mm256_cmp_ps::<_CMP_ORD_Q>(z, z);
+            let zz = _mm256_and_ps(z, ok);
+            let c1 = _mm256_blendv_ps(one, k.c1, ok);
+            let g = _mm256_and_ps(k.g2, ok);
+            let w = _mm256_fmadd_ps(g, zz, *v);
+            *x = _mm256_fmadd_ps(c1, xp, _mm256_mul_ps(k.alpha, zz));
+            *v = _mm256_fnmadd_ps(g, xp, w);
+        }
+    }
+
+    /// `blocks` blocks of [`BLOCK`] steps of the [`LANES`] tracks whose
+    /// states are `x`, `v` (updated), reading `z[l]` and writing `xo[l]`,
+    /// `vo[l]` (`BLOCK * blocks` samples from each pointer).
+    ///
+    /// # Safety
+    /// AVX2 and FMA are available; every pointer is valid for
+    /// `BLOCK * blocks` elements, outputs not overlapping each other or the
+    /// inputs; with `nt`, every `xo[l]` and `vo[l]` is 64-byte aligned.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn rows16(
+        c: &[C32; LANES],
+        x: &mut [f32; LANES],
+        v: &mut [f32; LANES],
+        z: &[*const f32; LANES],
+        xo: &[*mut f32; LANES],
+        vo: &[*mut f32; LANES],
+        blocks: usize,
+        nt: bool,
+    ) {
+        let gather = |f: &dyn Fn(&C32) -> f32, g: usize| {
+            let a: [f32; 8] = std::array::from_fn(|l| f(&c[8 * g + l]));
+            // SAFETY: `a` holds 8 f32.
+            unsafe { _mm256_loadu_ps(a.as_ptr()) }
+        };
+        let kk = |g: usize| K {
+            t: gather(&|c| c.t, g),
+            alpha: gather(&|c| c.alpha, g),
+            c1: gather(&|c| c.c1, g),
+            g2: gather(&|c| c.g2, g),
+        };
+        let (k0, k1) = (kk(0), kk(1));
+        let one = _mm256_set1_ps(1.0);
+        // SAFETY: x and v hold 16 f32 each.
+        let (mut x0, mut x1, mut v0, mut v1) = unsafe {
+            (
+                _mm256_loadu_ps(x.as_ptr()),
+                _mm256_loadu_ps(x.as_ptr().add(8)),
+                _mm256_loadu_ps(v.as_ptr()),
+                _mm256_loadu_ps(v.as_ptr().add(8)),
+            )
+        };
+        // Column stages: [register][step] -> the 8 slots.
+        let mut sz = [[_mm256_setzero_ps(); BLOCK]; 2];
+        let mut sx = [[_mm256_setzero_ps(); BLOCK]; 2];
+        let mut sv = [[_mm256_setzero_ps(); BLOCK]; 2];
+        for b in 0..blocks {
+            let off = b * BLOCK;
+            // z rows -> columns; any NaN in the block?
+            let mut nan = _mm256_setzero_ps();
+            for g in 0..2 {
+                for h in 0..2 {
+                    // SAFETY: off + 8 h + 8 <= BLOCK * blocks.
+                    let mut r: [__m256; 8] = std::array::from_fn(|l| unsafe {
+                        _mm256_loadu_ps(z[8 * g + l].add(off + 8 * h))
+                    });
+                    for q in 0..4 {
+                        let u = _mm256_cmp_ps::<_CMP_UNORD_Q>(r[2 * q], r[2 * q + 1]);
+                        nan = _mm256_or_ps(nan, u);
+                    }
+                    tr8(&mut r);
+                    sz[g][8 * h..8 * h + 8].copy_from_slice(&r);
+                }
+            }
+            if _mm256_movemask_ps(nan) == 0 {
+                for j in 0..BLOCK {
+                    clean(&k0, &mut x0, &mut v0, sz[0][j]);
+                    clean(&k1, &mut x1, &mut v1, sz[1][j]);
+                    sx[0][j] = x0;
+                    sv[0][j] = v0;
+                    sx[1][j] = x1;
+                    sv[1][j] = v1;
+                }
+            } else {
+                for j in 0..BLOCK {
+                    masked(&k0, one, &mut x0, &mut v0, sz[0][j]);
+                    masked(&k1, one, &mut x1, &mut v1, sz[1][j]);
+                    sx[0][j] = x0;
+                    sv[0][j] = v0;
+                    sx[1][j] = x1;
+                    sv[1][j] = v1;
+                }
+            }
+            // Columns -> rows, stored a whole line (both halves) at a time:
+            // streamed lines written in pieces are much slower.
+            for g in 0..2 {
+                for (s, dst) in [(&sx[g], xo), (&sv[g], vo)] {
+                    let mut lo: [__m256; 8] = std::array::from_fn(|j| s[j]);
+                    let mut hi: [__m256; 8] = std::array::from_fn(|j| s[8 + j]);
+                    tr8(&mut lo);
+                    tr8(&mut hi);
+                    for l in 0..8 {
+                        // SAFETY: off + BLOCK <= BLOCK * blocks; with nt
+                        // the row is 64-byte aligned, so is off.
+                        unsafe {
+                            let p = dst[8 * g + l].add(off);
+                            if nt {
+                                _mm256_stream_ps(p, lo[l]);
+                                _mm256_stream_ps(p.add(8), hi[l]);
+                            } else {
+                                _mm256_storeu_ps(p, lo[l]);
+                                _mm256_storeu_ps(p.add(8), hi[l]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // SAFETY: x and v hold 16 f32 each.
+        unsafe {
+            _mm256_storeu_ps(x.as_mut_ptr(), x0);
+            _mm256_storeu_ps(x.as_mut_ptr().add(8), x1);
+            _mm256_storeu_ps(v.as_mut_ptr(), v0);
+            _mm256_storeu_ps(v.as_mut_ptr().add(8), v1);
+        }
+    }
+}
+
+#[cfg(test)]
+#[path = "tests/f32arith.rs"]
+mod tests;

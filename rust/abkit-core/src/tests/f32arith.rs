@@ -1,0 +1,284 @@
+//! Tests of `filter::f32arith` (alpha-beta in `f32` arithmetic).
+
+use super::super::{filter_ab, Init, Measurements, TrackState};
+use super::*;
+
+/// The alpha-beta recursion in `f32`, written here independently: the
+/// two-point or first-sample start, then the kernel's arrangement of the
+/// step (`x_p = x + T v`, `x = (1 - a) x_p + a z`, `v = (v + g2 z) - g2 x_p`,
+/// fused when the kernels fuse), coasting on NaN.
+fn reference32(a: f64, b: f64, t: f64, init: Init, z: &[f32]) -> (Vec<f32>, Vec<f32>) {
+    let fused = crate::filter::uses_fma();
+    let fma = |p: f32, q: f32, r: f32| if fused { p.mul_add(q, r) } else { p * q + r };
+    let (t32, a32, c1, g2) = (t as f32, a as f32, (1.0 - a) as f32, (b / t) as f32);
+    let n = z.len();
+    let (mut xs, mut vs) = (vec![f32::NAN; n], vec![f32::NAN; n]);
+    let valid: Vec<usize> = (0..n).filter(|&k| !z[k].is_nan()).collect();
+    let Some(&k1) = valid.first() else {
+        return (xs, vs);
+    };
+    let (mut x, mut v, from) = if init == Init::First {
+        xs[k1] = z[k1];
+        vs[k1] = 0.0;
+        (z[k1], 0f32, k1 + 1)
+    } else {
+        for k in k1..n {
+            xs[k] = z[k1];
+        }
+        let Some(&k2) = valid.get(1) else {
+            return (xs, vs);
+        };
+        let v = (z[k2] - z[k1]) / ((k2 - k1) as f32 * t32);
+        xs[k2] = z[k2];
+        vs[k2] = v;
+        (z[k2], v, k2 + 1)
+    };
+    for k in from..n {
+        let xp = fma(t32, v, x);
+        if z[k].is_nan() {
+            x = xp;
+        } else {
+            let w = fma(g2, z[k], v);
+            x = fma(c1, xp, a32 * z[k]);
+            v = fma(-g2, xp, w);
+        }
+        xs[k] = x;
+        vs[k] = v;
+    }
+    (xs, vs)
+}
+
+/// `n_tracks x n` samples of constant-velocity targets with noise, offset
+/// `off`, and NaN at the positions `nan(i, k)` says.
+fn data(n_tracks: usize, n: usize, off: f32, nan: impl Fn(usize, usize) -> bool) -> Vec<f32> {
+    let mut s = 0x2545_f491_4f6c_dd1du64;
+    let mut noise = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 40) as f32 / (1u64 << 24) as f32 - 0.5
+    };
+    let mut z = vec![0f32; n_tracks * n];
+    for i in 0..n_tracks {
+        for k in 0..n {
+            z[i * n + k] = if nan(i, k) {
+                f32::NAN
+            } else {
+                off + (1.0 + i as f32 * 0.01) * k as f32 * 0.1 + noise()
+            };
+        }
+    }
+    z
+}
+
+/// Run `filter_ab_f32` on the whole batch; the outputs `(x, v)` per track.
+fn run32(
+    p: &[(f64, f64, f64)],
+    init: Init,
+    z: &[f32],
+    n_tracks: usize,
+    n: usize,
+    parallel: bool,
+) -> Vec<f32> {
+    let meas = Measurements::contiguous(z, n_tracks, n, 1).unwrap();
+    let mut st = vec![TrackState::default(); n_tracks];
+    let mut out = vec![0f32; 2 * n_tracks * n];
+    filter_ab_f32(p, init, &meas, &mut st, &mut out, None, parallel).unwrap();
+    out
+}
+
+fn same(a: f32, b: f32) -> bool {
+    a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+}
+
+/// Every path (vector rows of full groups, scalar groups, single tracks,
+/// chunks, threads) equals the independent `f32` recursion bit for bit,
+/// with NaN patterns inside and outside the vector blocks, both inits,
+/// shared and per-track gains, and rows long enough for streamed outputs.
+#[test]
+fn f32_paths_match_the_reference_bit_for_bit() {
+    let cases: [(usize, usize); 4] = [(16, 300), (35, 257), (16, 70_000), (17, 64)];
+    for (n_tracks, n) in cases {
+        let nan = |i: usize, k: usize| {
+            (i % 5 == 1 && k % 97 == 3)
+                || (i == 2 && k < 7)
+                || (i == 3 && (k == 1 || k == 2))
+                || (i == 4 && (100..140).contains(&k))
+                || i == 6
+        };
+        let z = data(n_tracks, n, 1000.0, nan);
+        let per: Vec<(f64, f64, f64)> = (0..n_tracks)
+            .map(|i| {
+                (
+                    0.2 + 0.03 * i as f64,
+                    0.05 + 0.01 * i as f64,
+                    0.1 + 0.001 * i as f64,
+                )
+            })
+            .collect();
+        for params in [vec![(0.5, 0.2, 0.1)], per] {
+            for init in [Init::TwoPoint, Init::First] {
+                let out = run32(&params, init, &z, n_tracks, n, false);
+                let par = run32(&params, init, &z, n_tracks, n, true);
+                assert!(out.iter().zip(&par).all(|(a, b)| same(*a, *b)));
+                for i in 0..n_tracks {
+                    let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
+                    let row = &z[i * n..(i + 1) * n];
+                    let (rx, rv) = reference32(a, b, t, init, row);
+                    let per = n_tracks * n;
+                    for k in 0..n {
+                        let (x, v) = (out[i * n + k], out[per + i * n + k]);
+                        assert!(
+                            same(x, rx[k]) && same(v, rv[k]),
+                            "{n_tracks}x{n} {init:?} track {i} sample {k}: ({x}, {v}) vs ({}, {})",
+                            rx[k],
+                            rv[k]
+                        );
+                    }
+                    // The track alone (scalar path), in three chunks.
+                    let mut st = [TrackState::default()];
+                    let mut got = vec![0f32; 2 * n];
+                    for (c0, c1) in [(0, 5), (5, n / 2), (n / 2, n)] {
+                        let meas = Measurements::contiguous(&row[c0..c1], 1, c1 - c0, 1).unwrap();
+                        let mut o = vec![0f32; 2 * (c1 - c0)];
+                        filter_ab_f32(&[(a, b, t)], init, &meas, &mut st, &mut o, None, false)
+                            .unwrap();
+                        got[c0..c1].copy_from_slice(&o[..c1 - c0]);
+                        got[n + c0..n + c1].copy_from_slice(&o[c1 - c0..]);
+                    }
+                    for k in 0..n {
+                        assert!(same(got[k], rx[k]) && same(got[n + k], rv[k]));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Residuals (scalar path) and a non-contiguous batch (every other sample
+/// of a wider array) agree with the reference too.
+#[test]
+fn f32_residuals_and_strided_input() {
+    let (n_tracks, n) = (16, 400);
+    let z = data(n_tracks, 2 * n, -50.0, |i, k| k % 61 == i);
+    let (a, b, t) = (0.3, 0.05, 0.5);
+    let meas = Measurements {
+        data: &z,
+        base: 0,
+        s_track: (2 * n) as isize,
+        s_sample: 2,
+        s_comp: 1,
+        n_tracks,
+        n_samples: n,
+        m: 1,
+    };
+    let mut st = vec![TrackState::default(); n_tracks];
+    let mut out = vec![0f32; 2 * n_tracks * n];
+    let mut res = vec![0f32; n_tracks * n];
+    filter_ab_f32(
+        &[(a, b, t)],
+        Init::TwoPoint,
+        &meas,
+        &mut st,
+        &mut out,
+        Some(&mut res),
+        true,
+    )
+    .unwrap();
+    for i in 0..n_tracks {
+        let row: Vec<f32> = (0..n).map(|k| z[i * 2 * n + 2 * k]).collect();
+        let (rx, rv) = reference32(a, b, t, Init::TwoPoint, &row);
+        for k in 0..n {
+            assert!(same(out[i * n + k], rx[k]) && same(out[n_tracks * n + i * n + k], rv[k]));
+            // The residual of a running step is z minus the prediction from
+            // the previous estimates.
+            if k >= 2 && !rx[k - 1].is_nan() && !rv[k - 1].is_nan() {
+                let xp = if crate::filter::uses_fma() {
+                    (t as f32).mul_add(rv[k - 1], rx[k - 1])
+                } else {
+                    t as f32 * rv[k - 1] + rx[k - 1]
+                };
+                assert!(same(res[i * n + k], row[k] - xp), "track {i} sample {k}");
+            }
+        }
+    }
+}
+
+/// Against the `f64`-arithmetic kernel on the same `f32` data: within
+/// `8 (1 + 1 / alpha)` `f32` epsilons of the array's scale for positions
+/// (and of scale / T for velocities), over gains from tiny to large alpha
+/// and offsets up to 1e5 (the measured drift is about 0.3 / alpha
+/// epsilons, bench/f32_arith_accuracy.py).
+#[test]
+fn f32_arithmetic_stays_within_its_bound_of_f64() {
+    let (n_tracks, n) = (16, 20_000);
+    for off in [0f32, 1e3, 1e5] {
+        let z = data(n_tracks, n, off, |i, k| (k + i) % 211 == 0);
+        let scale = z
+            .iter()
+            .filter(|v| !v.is_nan())
+            .fold(0f32, |m, v| m.max(v.abs())) as f64;
+        for (a, b, t) in [
+            (0.0045, 1.0e-5, 0.1),
+            (0.05, 1.3e-3, 1.0),
+            (0.5, 0.2, 0.1),
+            (1.2, 0.9, 2.0),
+        ] {
+            let o32 = run32(&[(a, b, t)], Init::TwoPoint, &z, n_tracks, n, false);
+            let meas = Measurements::contiguous(&z, n_tracks, n, 1).unwrap();
+            let mut st = vec![TrackState::default(); n_tracks];
+            let mut o64 = vec![0f32; 2 * n_tracks * n];
+            filter_ab(
+                &[(a, b, t)],
+                Init::TwoPoint,
+                &meas,
+                &mut st,
+                &mut o64,
+                None,
+                false,
+                None,
+            )
+            .unwrap();
+            let tol = 8.0 * f32::EPSILON as f64 * (1.0 + 1.0 / a) * scale;
+            let per = n_tracks * n;
+            for j in 0..2 * per {
+                let (p, q) = (o32[j] as f64, o64[j] as f64);
+                assert_eq!(p.is_nan(), q.is_nan(), "NaN pattern at {j}");
+                let tol = if j < per { tol } else { tol / t };
+                assert!(
+                    p.is_nan() || (p - q).abs() <= tol,
+                    "alpha {a} offset {off} at {j}: {p} vs {q} (tolerance {tol:.3e})"
+                );
+            }
+        }
+    }
+}
+
+/// Bad arguments are errors, as for the `f64` kernel.
+#[test]
+fn f32_bad_arguments() {
+    let z = vec![1f32; 10];
+    let meas = Measurements::contiguous(&z, 1, 10, 1).unwrap();
+    let mut st = vec![TrackState::default(); 1];
+    let mut out = vec![0f32; 20];
+    for p in [
+        (f64::NAN, 0.1, 1.0),
+        (0.5, f64::INFINITY, 1.0),
+        (0.5, 0.1, 0.0),
+    ] {
+        assert!(
+            filter_ab_f32(&[p], Init::TwoPoint, &meas, &mut st, &mut out, None, false).is_err()
+        );
+    }
+    let mut short = vec![0f32; 19];
+    assert!(filter_ab_f32(
+        &[(0.5, 0.1, 1.0)],
+        Init::TwoPoint,
+        &meas,
+        &mut st,
+        &mut short,
+        None,
+        false
+    )
+    .is_err());
+}
