@@ -14,6 +14,8 @@
 //! distributed, so output is bit-identical for any thread count. Arithmetic
 //! is in `f64` whatever the input precision; the state carried between
 //! chunks is `f64` too, so a track run in chunks is bit-identical to one call.
+//! (The opt-in [`f32arith`] runs alpha-beta on `f32` data in `f32`
+//! arithmetic, with the same guarantees among its own paths.)
 //!
 //! Start-up (`Init`): before a track's first valid sample the estimates are
 //! NaN. `Init::First` sets the state from the first valid measurement through

@@ -8,7 +8,7 @@
 //! `f32` arithmetic, eight slots per AVX2 register, which the memory keeps
 //! up with.
 //!
-//! The step is [`super::ab_step`]'s in `f32` (`x_p = x + T v`,
+//! The step is `ab_step`'s in `f32` (`x_p = x + T v`,
 //! `x' = (1 - alpha) x_p + alpha z`, `v' = (v + g2 z) - g2 x_p`, fused
 //! multiply-adds where the CPU has them, a NaN `z` coasting), with the
 //! constants `T`, `alpha`, `1 - alpha` and `g2 = beta / T` each computed in
@@ -26,7 +26,7 @@
 //! session 22), against 0.5 ulp for the default kernels.
 //!
 //! Rows (`x86_64` with AVX2 and FMA): groups of [`LANES`] = 16 contiguous
-//! rows in two 8-slot registers ([`avx2::rows16`]), blocks of 16 steps:
+//! rows in two 8-slot registers (`avx2::rows16`), blocks of 16 steps:
 //! per register, two 8 x 8 transposes of the rows' `z` into a column stage,
 //! the steps of both registers interleaved (two independent dependency
 //! chains), then the outputs' columns transposed back into rows. Outputs
@@ -76,7 +76,7 @@ fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
     }
 }
 
-/// One alpha-beta step in `f32` (the operations of [`super::ab_step`]):
+/// One alpha-beta step in `f32` (the operations of `ab_step`):
 /// returns `(x', v', residual)`; a NaN `z` coasts.
 #[inline(always)]
 pub(crate) fn step<const FMA: bool>(c: &C32, x: f32, v: f32, z: f32) -> (f32, f32, f32) {

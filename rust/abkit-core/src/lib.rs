@@ -22,7 +22,8 @@
 //!   in parallel on rayon's global pool.
 //! - [`filter`]: the batched fixed-gain filtering kernels (general `n <= 6`,
 //!   `m <= 2`; alpha-beta specialisation), start-up, missed samples, streaming
-//!   state.
+//!   state; `filter::f32arith`: alpha-beta on `f32` data in `f32`
+//!   arithmetic (an opt-in mode; not yet bound to Python).
 //! - [`smooth`]: steady-state fixed-interval (RTS) and fixed-lag smoothing.
 //! - [`kalman`]: the time-varying Kalman recursion (paper 002), batched.
 //! - [`irregular`]: gain laws for irregular sampling (the step model as a
