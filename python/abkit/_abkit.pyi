@@ -89,6 +89,7 @@ def filter_alphabeta(
     threads: int | None = None,
     smoother_gain: _F64 | None = None,
     lag: int | None = None,
+    f32_arith: bool = False,
 ) -> bool: ...
 def filter_fixed_gain(
     z: _FArr,

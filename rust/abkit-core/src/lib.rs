@@ -23,7 +23,7 @@
 //! - [`filter`]: the batched fixed-gain filtering kernels (general `n <= 6`,
 //!   `m <= 2`; alpha-beta specialisation), start-up, missed samples, streaming
 //!   state; `filter::f32arith`: alpha-beta on `f32` data in `f32`
-//!   arithmetic (an opt-in mode; not yet bound to Python).
+//!   arithmetic (the opt-in `AlphaBetaFilter(float32_arithmetic=True)`).
 //! - [`smooth`]: steady-state fixed-interval (RTS) and fixed-lag smoothing.
 //! - [`kalman`]: the time-varying Kalman recursion (paper 002), batched.
 //! - [`irregular`]: gain laws for irregular sampling (the step model as a

@@ -6,6 +6,7 @@
 //! and run the kernels.
 
 use crate::convert::{guard, to_pyerr};
+use abkit_core::filter::f32arith::filter_ab_f32;
 use abkit_core::filter::{
     filter_ab, filter_general, states_from_f64, Gains, Init, IoFloat, Measurements, Smoother,
     TrackState,
@@ -247,8 +248,9 @@ macro_rules! typed {
 
 /// Alpha-beta filtering of `z` (n_tracks, n_samples, 1) into `out`
 /// (2, n_tracks, n_samples); `params` rows are (alpha, beta, T).
+/// `f32_arith`: float32 data in float32 arithmetic (no smoother).
 #[pyfunction]
-#[pyo3(signature = (z, params, init, state, out, resid=None, threads=None, smoother_gain=None, lag=None))]
+#[pyo3(signature = (z, params, init, state, out, resid=None, threads=None, smoother_gain=None, lag=None, f32_arith=false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter_alphabeta<'py>(
     py: Python<'py>,
@@ -261,6 +263,7 @@ pub(crate) fn filter_alphabeta<'py>(
     threads: Option<usize>,
     smoother_gain: Option<PyReadonlyArray1<'py, f64>>,
     lag: Option<usize>,
+    f32_arith: bool,
 ) -> PyResult<bool> {
     let a = smoother_gains::<2>(smoother_gain.as_ref())?;
     let init = parse_init(init)?;
@@ -270,6 +273,22 @@ pub(crate) fn filter_alphabeta<'py>(
         .map(|r| (r[0], r[1], r[2]))
         .collect();
     let is64 = dispatch_dtype(z, out, resid)?;
+    if f32_arith && !is64 {
+        if a.is_some() {
+            return Err(PyValueError::new_err("float32 arithmetic has no smoother"));
+        }
+        let bufs = Buffers {
+            out: out.cast::<PyArray3<f32>>()?.clone(),
+            resid: resid
+                .map(|r| r.cast::<PyArray3<f32>>().cloned())
+                .transpose()?,
+            state,
+        };
+        let z = z.cast::<PyArray3<f32>>()?.readonly();
+        return run_typed::<f32>(py, z, bufs, threads, 2, |m, s, o, r, par| {
+            filter_ab_f32(&p, init, m, s, o, r, par)
+        });
+    }
     let sm = a.as_deref().map(|a| Smoother { a, lag });
     typed!(
         py,

@@ -1,0 +1,159 @@
+"""AlphaBetaFilter(float32_arithmetic=True): float32 data in float32 arithmetic.
+
+Checked against the independent float64 reference (tests/filterref.py)
+within the documented drift bound, and for the guarantees the mode keeps
+among its own paths (bit-identical across threads, chunked streaming,
+batch layouts, strides, out= reuse), plus its errors. The kernel's
+arithmetic is checked bit for bit against an independent float32
+recursion in the Rust tests (rust/abkit-core/src/tests/f32arith.rs).
+"""
+
+import numpy as np
+import pytest
+
+import abkit
+from filterref import ab_model, assert_states_close, run_ref
+
+EPS32 = float(np.finfo(np.float32).eps)
+
+
+def bound(alpha: float) -> float:
+    """Documented drift of float32 arithmetic: 2 (1 + 1/alpha) float32
+    epsilons of the scale (measured here: at most 0.2 / alpha + 2.3)."""
+    return 2.0 * EPS32 * (1.0 + 1.0 / alpha)
+
+
+def tracks(n_tracks: int, n: int, offset: float, seed: int = 0, nan_rate: float = 0.0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    k = np.arange(n)
+    z = offset + (1.0 + 0.01 * np.arange(n_tracks))[:, None] * 0.1 * k + rng.standard_normal((n_tracks, n))
+    if nan_rate:
+        z[rng.random(z.shape) < nan_rate] = np.nan
+    return z.astype(np.float32)
+
+
+# (alpha, beta, T): tiny to large alpha
+GAINS = [(0.0045, 1.0e-5, 0.1), (0.05, 1.3e-3, 1.0), (0.5, 0.2, 0.1), (1.2, 0.9, 2.0)]
+
+
+@pytest.mark.parametrize("alpha,beta,T", GAINS)
+@pytest.mark.parametrize("offset", [0.0, 1e3, 1e5])
+@pytest.mark.parametrize("init", ["two-point", "first"])
+def test_within_documented_bound_of_float64_reference(alpha, beta, T, offset, init):
+    # 16 tracks (one vector group) of 3,000 samples with missed detections
+    z = tracks(16, 3000, offset, seed=1, nan_rate=0.02)
+    z[3, :5] = np.nan
+    z[5] = np.nan
+    f = abkit.AlphaBetaFilter(alpha, beta, T, float32_arithmetic=True)
+    r = f.run(z, init=init, threads=1)
+    assert r.states.dtype == np.float32
+    want, _, _ = run_ref(z.astype(np.float64), ab_model(alpha, beta, T), init=init)
+    assert_states_close(r.states, want, rtol=bound(alpha), what="float32 arithmetic", kin_T=T)
+
+
+def test_mode_changes_float32_results_and_not_float64():
+    z = tracks(16, 5000, 1e3, seed=2)
+    a, b, T = 0.01, 5e-5, 0.1
+    d = abkit.AlphaBetaFilter(a, b, T).run(z).states
+    s = abkit.AlphaBetaFilter(a, b, T, float32_arithmetic=True).run(z).states
+    # every step rounds to float32 now: the results differ somewhere
+    assert not np.array_equal(d, s)
+    z64 = z.astype(np.float64)
+    d64 = abkit.AlphaBetaFilter(a, b, T).run(z64).states
+    s64 = abkit.AlphaBetaFilter(a, b, T, float32_arithmetic=True).run(z64).states
+    assert s64.dtype == np.float64
+    np.testing.assert_array_equal(d64, s64)
+
+
+@pytest.mark.parametrize("n_tracks,n", [(16, 300), (35, 257), (17, 64), (16, 70_000), (1, 1000), (40, 3)])
+def test_paths_bit_identical(n_tracks, n):
+    """Threads, streaming in chunks, each track alone, strided input and
+    out= reuse give the same bits (full vector groups, scalar groups and
+    streamed outputs included)."""
+    z = tracks(n_tracks, n, 50.0, seed=3, nan_rate=0.01)
+    f = abkit.AlphaBetaFilter(0.3, 0.05, 0.5, float32_arithmetic=True)
+    ref = f.run(z, threads=1)
+    for th in (None, 2):
+        np.testing.assert_array_equal(f.run(z, threads=th).states, ref.states)
+    # chunks with state=
+    cuts = [0, 1, max(2, n // 3), n]
+    st = None
+    parts = []
+    for c0, c1 in zip(cuts[:-1], cuts[1:]):
+        r = f.run(z[:, c0:c1], state=st)
+        st = r.state
+        parts.append(r.states)
+    np.testing.assert_array_equal(np.concatenate(parts, axis=-1), ref.states)
+    np.testing.assert_array_equal(st.x, ref.state.x)
+    # each track alone (1-D input)
+    for i in {0, n_tracks // 2, n_tracks - 1}:
+        np.testing.assert_array_equal(f.run(z[i]).states, ref.states[:, i])
+    # strided input: every other sample of a wider array
+    wide = np.repeat(z, 2, axis=1)
+    np.testing.assert_array_equal(f.run(wide[:, ::2]).states, ref.states)
+    # out= reused
+    out = np.full_like(ref.states, 7.0)
+    r = f.run(z, out=out)
+    assert r.states is out or np.shares_memory(r.states, out)
+    np.testing.assert_array_equal(out, ref.states)
+
+
+def test_per_track_gains_and_residuals():
+    n_tracks, n = 20, 500
+    z = tracks(n_tracks, n, -30.0, seed=4, nan_rate=0.03)
+    a = np.linspace(0.2, 0.9, n_tracks)
+    b = np.linspace(0.02, 0.3, n_tracks)
+    T = np.linspace(0.1, 1.0, n_tracks)
+    f = abkit.AlphaBetaFilter(a, b, T, float32_arithmetic=True)
+    r = f.run(z, return_residuals=True)
+    np.testing.assert_array_equal(f.run(z).states, r.states)
+    for i in (0, 7, 19):
+        g = abkit.AlphaBetaFilter(a[i], b[i], T[i], float32_arithmetic=True)
+        np.testing.assert_array_equal(g.run(z[i]).states, r.states[:, i])
+        want, _, _ = run_ref(z[i].astype(np.float64), ab_model(a[i], b[i], T[i]))
+        assert_states_close(r.states[:, i], want, rtol=bound(a[i]), kin_T=T[i])
+    # residual = z - (x + T v) from the previous estimates (float32), NaN
+    # where z is NaN or the track is starting
+    x, v = r.position.astype(np.float64), r.velocity.astype(np.float64)
+    pred = x[:, :-1] + T[:, None] * v[:, :-1]
+    res = r.residuals[:, 1:].astype(np.float64)
+    zz = z[:, 1:].astype(np.float64)
+    ok = ~np.isnan(res)
+    assert np.array_equal(np.isnan(res), np.isnan(zz) | np.isnan(pred))
+    scale = np.nanmax(np.abs(z))
+    assert np.max(np.abs(res[ok] - (zz - pred)[ok])) <= 4 * EPS32 * scale
+
+
+def test_tracker_streams_like_one_call():
+    z = tracks(16, 900, 10.0, seed=5)
+    f = abkit.AlphaBetaFilter(0.5, 0.2, 0.1, float32_arithmetic=True)
+    one = f.run(z)
+    tr = abkit.Tracker(f)
+    got = np.concatenate([tr.update(z[:, k : k + 100]).states for k in range(0, 900, 100)], axis=-1)
+    np.testing.assert_array_equal(got, one.states)
+
+
+def test_errors():
+    with pytest.raises(TypeError, match="float32_arithmetic"):
+        abkit.AlphaBetaFilter(0.5, 0.2, 0.1, float32_arithmetic="yes")
+    with pytest.raises(ValueError, match="float32_arithmetic"):
+        abkit.AlphaBetaFilter(0.5, 0.2, 0.1, float32_arithmetic=True, transient="kalman")
+    f = abkit.AlphaBetaFilter.from_noise(1.0, 2.0, 0.1, float32_arithmetic=True)
+    assert f.float32_arithmetic
+    z = tracks(2, 50, 0.0)
+    t = np.arange(50) * 0.1
+    for call in (
+        lambda: f.smooth(z),
+        lambda: f.smooth(z, lag=3),
+        lambda: f.run(z, t=t),
+        lambda: f.run(z.reshape(-1), offsets=[0, 50, 100]),
+        lambda: f.run(np.stack([z, z], axis=-1), axes=2),
+    ):
+        with pytest.raises(ValueError, match="float32_arithmetic=True"):
+            call()
+    # float64 data: every path available (float64 arithmetic)
+    z64 = z.astype(np.float64)
+    f.smooth(z64)
+    f.run(z64, t=t)
+    # the default filter keeps every path for float32 data
+    abkit.AlphaBetaFilter.from_noise(1.0, 2.0, 0.1).smooth(z)
