@@ -519,6 +519,22 @@ class Bench:
         del r
         add("abkit threads=1, no out= (fresh)", "abkit1_fresh", lambda: ab.run(z, threads=1), e)
         add("abkit threads=None (pool), no out=", "abkit_default", lambda: ab.run(z), e)
+        if dt == np.float32:
+            # the opt-in float32 arithmetic (docs/filtering.md): within its
+            # documented drift, 2 (1 + 1/alpha) float32 eps of the scale
+            ab32 = abkit.AlphaBetaFilter(ALPHA, BETA, T, float32_arithmetic=True)
+            o32 = np.empty_like(out)
+            ab32.run(z, out=o32, threads=1)
+            # (velocities against the position scale / T, as in the tests:
+            # a position error enters the velocity through beta / T)
+            tol32 = 2.0 * (1.0 + 1.0 / ALPHA) * float(np.finfo(np.float32).eps)
+            vscale = float(np.nanmax(np.abs(ref[1].astype(np.float64))))
+            pscale = float(np.nanmax(np.abs(ref[0].astype(np.float64)))) / T
+            e = max(self.check("abkit float32_arithmetic=True, position", (o32[0],), (ref[0],), tol32),
+                    self.check("abkit float32_arithmetic=True, velocity", (o32[1],), (ref[1],),
+                               tol32 * max(1.0, pscale / max(vscale, 1e-300))))
+            add("abkit float32_arithmetic=True, threads=1, out=", "abkit1_f32a",
+                lambda: ab32.run(z, out=o32, threads=1), e)
         og2 = np.empty((2, nt, ns), dtype=dt)
         self.gen2.run(z, out=og2, threads=1)
         e = self.check("abkit FixedGainFilter 2-state", (og2[0], og2[1]), ref, tol)
@@ -773,6 +789,12 @@ def report(b: Bench, crit: Dict[str, Tuple[float, float, float, float]], sizes, 
         for wl, nt, ns in wls:
             thr = 0.55 if nt == 1 else 0.8
             target(f">= {thr} of {what}, 1 thread, out=", wl, {dt: tmin(wl, dt, kinds) / a1[wl, dt] for dt in dts}, thr)
+    for kinds, what in ((C2, "ceiling (best pass)"), (RS2, "regular-store ceiling")):
+        for wl, nt, ns in wls:
+            thr = 0.55 if nt == 1 else 0.8
+            f32a = get(wl, "f32", "abkit1_f32a")
+            target(f"float32_arithmetic=True: >= {thr} of {what}, 1 thread, out=", wl,
+                   {"f64": None, "f32": tmin(wl, "f32", kinds) / f32a["t_min"] if f32a else None}, thr)
     for wl, nt, ns in wls:
         target(">= 3x numba @njit", wl, {dt: (get(wl, dt, "numba")["t_min"] / a1[wl, dt]
                                              if get(wl, dt, "numba") else None) for dt in dts}, 3.0)

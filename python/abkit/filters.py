@@ -875,10 +875,13 @@ class AlphaBetaFilter(FixedGainFilter):
         data are filtered in float64 and each estimate is rounded once
         (0.5 ulp of the float64 result); in float32 arithmetic every step
         rounds, and the estimates drift from the float64 ones by about
-        ``0.3 / alpha`` float32 epsilons of the data's scale
+        ``0.3 / alpha`` float32 epsilons of the data's scale, plus up to
+        ``G / 2`` after a run of ``G`` missed samples
         (``docs/filtering.md``), in exchange for up to twice the throughput
         on batches of many long tracks. Results stay bit-identical across
-        thread counts, chunked streaming (``state=``) and batch layouts.
+        thread counts, chunked streaming (``state=``) and batch layouts,
+        except that a long single track is split into segments as in the
+        default kernels (then within float32 rounding of the unsplit run).
         Available for :meth:`run` on regular batches (not with ``t``,
         ``offsets``, ``axes``, ``max_gap``, ``on_duplicate``, nor for
         :meth:`smooth` or ``transient``): those raise a ValueError on

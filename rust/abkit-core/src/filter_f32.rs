@@ -39,6 +39,10 @@ use crate::Result;
 /// Tracks per group of the row kernel (two registers of eight slots).
 pub const LANES: usize = 16;
 
+// A split track's segments are the row kernel's lanes (the plan,
+// `super::split_seg_len`, divides a track into `SPLIT_SEGMENTS`).
+const _: () = assert!(LANES == super::SPLIT_SEGMENTS);
+
 /// Steps per block of the row kernel (one 64-byte line of `f32` per lane).
 const BLOCK: usize = 16;
 
@@ -226,12 +230,27 @@ fn group<const FMA: bool>(
         unsafe { rows_fma(&konst, &k0, n, z, jobs, nt) };
         return;
     }
+    let few = jobs.len() < LANES;
     for (l, (i, st, o)) in jobs.iter_mut().enumerate() {
         if st.phase < 2.0 {
             continue;
         }
         let c = konst(*i);
         let from = if l < LANES { k0[l] } else { 0 };
+        // A long track in a group too small for the row lanes: split it.
+        #[cfg(target_arch = "x86_64")]
+        if FMA && few && o.resid.is_none() && super::simd::avx2_available() {
+            if let Some(row) = zrow(*i) {
+                let (a, b, _) = params[if params.len() == 1 { 0 } else { *i }];
+                if let Some(ls) = super::split_seg_len(a, b, n - from) {
+                    let nt = super::streamed::<f32>(2 * n * 4, true);
+                    // SAFETY: AVX2 and FMA checked; the row and outputs have
+                    // n >= from + LANES * ls samples (the plan's segments).
+                    unsafe { split_fma(&c, st, from, ls, row, o, nt) };
+                    continue;
+                }
+            }
+        }
         match zrow(*i) {
             Some(row) => run_loop::<FMA>(&c, st, from, n, |k| row[k], o),
             None => run_loop::<FMA>(&c, st, from, n, zat(*i), o),
@@ -239,9 +258,8 @@ fn group<const FMA: bool>(
     }
 }
 
-/// The vector rows of a full group: each lane steps (scalar) to its vector
-/// start (with streamed outputs, a sample whose `x` output starts a cache
-/// line), the lanes run whole blocks together, then each its tail.
+/// The vector rows of a full group (see [`lanes_fma`]), the states taken
+/// from and returned to the jobs.
 ///
 /// # Safety
 /// AVX2 and FMA are available; every job is running, has a contiguous `z`
@@ -257,61 +275,105 @@ unsafe fn rows_fma(
     nt: bool,
 ) {
     let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
-    let mut p = [0usize; LANES];
-    let mut rows: [&[f32]; LANES] = [&[]; LANES];
-    // Streamed stores need the x and v rows at the same line offset.
-    let nt = nt
-        && jobs.iter().all(|(_, _, o)| {
-            let [a, b] = &o.states;
-            (b.as_ptr() as usize)
-                .wrapping_sub(a.as_ptr() as usize)
-                .is_multiple_of(64)
-        });
     let mut x = [0f32; LANES];
     let mut v = [0f32; LANES];
-    for (l, (i, st, o)) in jobs.iter_mut().enumerate() {
+    let mut rows: [&[f32]; LANES] = [&[]; LANES];
+    let mut xs: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
+    let mut vs: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
+    let mut sts: [Option<&mut TrackState>; LANES] = std::array::from_fn(|_| None);
+    for (l, (i, st, o)) in jobs.iter_mut().enumerate().take(LANES) {
         c[l] = konst(*i);
         rows[l] = z.row(*i).unwrap_or(&[]);
-        let mut to = k0[l];
-        if nt {
-            let x = o.states[0].as_ptr() as usize;
-            while !(x + 4 * to).is_multiple_of(64) {
-                to += 1;
-            }
-        }
-        p[l] = to;
         x[l] = st.x[0] as f32;
         v[l] = st.x[1] as f32;
-    }
-    // The heads, the lanes interleaved (their dependency chains overlap).
-    steps(&c, &mut x, &mut v, *k0, &p, &rows, jobs);
-    let blocks = (0..LANES).map(|l| (n - p[l]) / BLOCK).min().unwrap_or(0);
-    let mut zp = [std::ptr::null::<f32>(); LANES];
-    let mut xp = [std::ptr::null_mut::<f32>(); LANES];
-    let mut vp = [std::ptr::null_mut::<f32>(); LANES];
-    for (l, (_, _, o)) in jobs.iter_mut().enumerate() {
         let [a, b] = &mut o.states;
-        // In bounds: p[l] + BLOCK * blocks <= n = the rows' lengths.
-        zp[l] = rows[l][p[l]..].as_ptr();
-        xp[l] = a[p[l]..].as_mut_ptr();
-        vp[l] = b[p[l]..].as_mut_ptr();
+        xs[l] = &mut a[..n];
+        vs[l] = &mut b[..n];
+        sts[l] = Some(st);
     }
-    // SAFETY: AVX2 and FMA (this function's features); every pointer has
-    // `BLOCK * blocks` elements from it; `nt` only with `x` lines aligned at
-    // every lane's start (stepped above) and `v` at the same line offset.
-    unsafe { avx2::rows16(&c, &mut x, &mut v, &zp, &xp, &vp, blocks, nt) };
-    // The tails, interleaved too.
-    let from: [usize; LANES] = std::array::from_fn(|l| p[l] + BLOCK * blocks);
-    steps(&c, &mut x, &mut v, from, &[n; LANES], &rows, jobs);
-    for (l, (_, st, _)) in jobs.iter_mut().enumerate() {
-        st.x[0] = x[l] as f64;
-        st.x[1] = v[l] as f64;
+    // SAFETY: forwarded (AVX2 and FMA).
+    unsafe { lanes_fma(&c, &mut x, &mut v, k0, rows, xs, vs, nt) };
+    for (l, st) in sts.into_iter().enumerate() {
+        if let Some(st) = st {
+            st.x[0] = x[l] as f64;
+            st.x[1] = v[l] as f64;
+        }
     }
 }
 
-/// Scalar steps of the lanes of a full group, lane `l` over samples
-/// `from[l]..to[l]`, the lanes interleaved step by step (the same
-/// operations as [`run_loop`] per lane).
+/// [`LANES`] lanes, lane `l` stepping its states `x[l]`, `v[l]` over the
+/// samples `k0[l]..` of its row `z[l]`, writing `xs[l]`, `vs[l]` (rows of a
+/// batch, or segments of one split track): each lane steps (scalar) to its
+/// vector start (with streamed outputs, a sample whose `x` output starts a
+/// cache line; streaming is dropped unless every lane's `x` and `v` rows
+/// lie at the same line offset), the lanes run whole blocks together, then
+/// each its tail. Lanes whose rows are shorter than `k0[l] +
+/// MIN_VECTOR_SAMPLES` (or whose outputs are shorter than `z[l]`) make
+/// every lane run the scalar steps instead (same results).
+///
+/// # Safety
+/// AVX2 and FMA are available.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn lanes_fma(
+    c: &[C32; LANES],
+    x: &mut [f32; LANES],
+    v: &mut [f32; LANES],
+    k0: &[usize; LANES],
+    z: [&[f32]; LANES],
+    mut xs: [&mut [f32]; LANES],
+    mut vs: [&mut [f32]; LANES],
+    nt: bool,
+) {
+    let len: [usize; LANES] = std::array::from_fn(|l| z[l].len());
+    let vector = (0..LANES).all(|l| {
+        len[l] >= k0[l] + MIN_VECTOR_SAMPLES && xs[l].len() >= len[l] && vs[l].len() >= len[l]
+    });
+    if !vector {
+        steps(c, x, v, *k0, &len, &z, &mut xs, &mut vs);
+        return;
+    }
+    // Streamed stores need the x and v rows at the same line offset.
+    let nt = nt
+        && (0..LANES).all(|l| {
+            (vs[l].as_ptr() as usize)
+                .wrapping_sub(xs[l].as_ptr() as usize)
+                .is_multiple_of(64)
+        });
+    let mut p = *k0;
+    if nt {
+        for l in 0..LANES {
+            let x0 = xs[l].as_ptr() as usize;
+            while !(x0 + 4 * p[l]).is_multiple_of(64) {
+                p[l] += 1;
+            }
+        }
+    }
+    // The heads, the lanes interleaved (their dependency chains overlap).
+    steps(c, x, v, *k0, &p, &z, &mut xs, &mut vs);
+    let blocks = (0..LANES)
+        .map(|l| (len[l] - p[l]) / BLOCK)
+        .min()
+        .unwrap_or(0);
+    // In bounds: p[l] + BLOCK * blocks <= len[l] <= the outputs' lengths.
+    let zp: [*const f32; LANES] = std::array::from_fn(|l| z[l][p[l]..].as_ptr());
+    let xp: [*mut f32; LANES] = std::array::from_fn(|l| xs[l][p[l]..].as_mut_ptr());
+    let vp: [*mut f32; LANES] = std::array::from_fn(|l| vs[l][p[l]..].as_mut_ptr());
+    // SAFETY: AVX2 and FMA (this function's features); every pointer has
+    // `BLOCK * blocks` elements from it, the outputs distinct rows; `nt`
+    // only with `x` lines aligned at every lane's start (stepped above)
+    // and `v` at the same line offset.
+    unsafe { avx2::rows16(c, x, v, &zp, &xp, &vp, blocks, nt) };
+    // The tails, interleaved too.
+    let from: [usize; LANES] = std::array::from_fn(|l| p[l] + BLOCK * blocks);
+    steps(c, x, v, from, &len, &z, &mut xs, &mut vs);
+}
+
+/// Scalar steps of [`LANES`] lanes, lane `l` over samples `from[l]..to[l]`,
+/// the lanes interleaved step by step (the operations of [`run_loop`] per
+/// lane).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn steps(
     c: &[C32; LANES],
@@ -319,22 +381,108 @@ fn steps(
     v: &mut [f32; LANES],
     from: [usize; LANES],
     to: &[usize; LANES],
-    rows: &[&[f32]; LANES],
-    jobs: &mut [Job<'_, f32, 2>],
+    z: &[&[f32]; LANES],
+    xs: &mut [&mut [f32]; LANES],
+    vs: &mut [&mut [f32]; LANES],
 ) {
-    let most = (0..LANES).map(|l| to[l] - from[l]).max().unwrap_or(0);
+    let most = (0..LANES)
+        .map(|l| to[l].saturating_sub(from[l]))
+        .max()
+        .unwrap_or(0);
     for s in 0..most {
-        for (l, (_, _, o)) in jobs.iter_mut().enumerate() {
+        for l in 0..LANES {
             let k = from[l] + s;
             if k < to[l] {
-                let (x1, v1, _) = step::<true>(&c[l], x[l], v[l], rows[l][k]);
+                let (x1, v1, _) = step::<true>(&c[l], x[l], v[l], z[l][k]);
                 x[l] = x1;
                 v[l] = v1;
-                o.states[0][k] = x1;
-                o.states[1][k] = v1;
+                xs[l][k] = x1;
+                vs[l][k] = v1;
             }
         }
     }
+}
+
+/// One long running track split into [`LANES`] segments of `ls` samples
+/// from `k0` (the default kernels' split, `super::ab_split`, in `f32`):
+/// pass 1 runs the segments in the vector lanes, segment 0 from the true
+/// state, the others from a guess (position from the sample before the
+/// segment, velocity zero); pass 2, in order, propagates each segment's
+/// start-state error through the loop and adds it to the outputs until it
+/// is below 2^-30 of the estimate (a quarter of a float32 ulp), giving each
+/// segment's true end state. The result agrees with the unsplit run within
+/// float32 rounding (both within the documented drift of the float64
+/// result), not bit for bit; the segmentation depends only on the length.
+///
+/// # Safety
+/// AVX2 and FMA are available; `row` and the outputs have `n >= k0 +
+/// LANES * ls` samples.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn split_fma(
+    c: &C32,
+    st: &mut TrackState,
+    k0: usize,
+    ls: usize,
+    row: &[f32],
+    o: &mut TrackOut<'_, f32, 2>,
+    nt: bool,
+) {
+    let n = row.len();
+    let body_end = k0 + LANES * ls;
+    let mut x0 = [0f32; LANES];
+    let mut v0 = [0f32; LANES];
+    x0[0] = st.x[0] as f32;
+    v0[0] = st.x[1] as f32;
+    for j in 1..LANES {
+        let prev = row[k0 + j * ls - 1];
+        x0[j] = if prev.is_nan() { 0.0 } else { prev };
+    }
+    let (mut ex, mut ev) = (x0, v0);
+    {
+        let [a, b] = &mut o.states;
+        let mut xc = a[k0..body_end].chunks_exact_mut(ls);
+        let mut vc = b[k0..body_end].chunks_exact_mut(ls);
+        let xs: [&mut [f32]; LANES] = std::array::from_fn(|_| xc.next().unwrap_or_default());
+        let vs: [&mut [f32]; LANES] = std::array::from_fn(|_| vc.next().unwrap_or_default());
+        let zs: [&[f32]; LANES] = std::array::from_fn(|j| &row[k0 + j * ls..k0 + (j + 1) * ls]);
+        // SAFETY: forwarded (AVX2 and FMA).
+        unsafe { lanes_fma(&[*c; LANES], &mut ex, &mut ev, &[0; LANES], zs, xs, vs, nt) };
+    }
+    // Pass 2: corrections, in order.
+    let tiny = 2f32.powi(-30);
+    let (mut true_x, mut true_v) = (ex[0], ev[0]);
+    let [xo, vo] = &mut o.states;
+    for j in 1..LANES {
+        let (mut dx, mut dv) = (true_x - x0[j], true_v - v0[j]);
+        let a = k0 + j * ls;
+        let mut k = a;
+        while k < a + ls && (dx != 0.0 || dv != 0.0) {
+            // delta' = A delta (updated sample) or Phi delta (missed sample)
+            let dp = c.t.mul_add(dv, dx);
+            if row[k].is_nan() {
+                dx = dp;
+            } else {
+                dx = c.c1 * dp;
+                dv = (-c.g2).mul_add(dp, dv);
+            }
+            let xn = xo[k] + dx;
+            let vn = vo[k] + dv;
+            xo[k] = xn;
+            vo[k] = vn;
+            if dx.abs() + (dv * c.t).abs() <= tiny * (xn.abs() + (vn * c.t).abs()) {
+                dx = 0.0;
+                dv = 0.0;
+            }
+            k += 1;
+        }
+        true_x = ex[j] + dx;
+        true_v = ev[j] + dv;
+    }
+    st.x[0] = true_x as f64;
+    st.x[1] = true_v as f64;
+    // The few samples after the last full segment.
+    run_loop::<true>(c, st, body_end, n, |k| row[k], o);
 }
 
 #[cfg(target_arch = "x86_64")]

@@ -282,3 +282,84 @@ fn f32_bad_arguments() {
     )
     .is_err());
 }
+
+/// A single long track is split into segments (pass 1 in the vector lanes,
+/// pass 2 corrections): within float32 rounding of the unsplit recursion
+/// (both within the drift bound of float64), NaN runs across segment
+/// boundaries included; a split chunk continues from the true state.
+#[test]
+fn f32_split_track_agrees_with_the_recursion() {
+    let n = (1 << 18) + 123;
+    for (a, b, t) in [(0.5, 0.2, 0.1), (0.05, 1.3e-3, 1.0)] {
+        let Some(ls) = crate::filter::split_seg_len(a, b, n - 2) else {
+            panic!("alpha {a}: not split");
+        };
+        // NaN runs across every segment boundary, and at the start of one.
+        let z = data(1, n, 1e3, |_, k| {
+            let j = k.saturating_sub(2) % ls;
+            j < 3 || j + 2 >= ls || (7 * ls..7 * ls + 40).contains(&k)
+        });
+        let scale = z
+            .iter()
+            .filter(|v| !v.is_nan())
+            .fold(0f32, |m, v| m.max(v.abs())) as f64;
+        let (rx, rv) = reference32(a, b, t, Init::TwoPoint, &z);
+        let out = run32(&[(a, b, t)], Init::TwoPoint, &z, 1, n, false);
+        let tol = 4.0 * f32::EPSILON as f64 * (1.0 + 1.0 / a) * scale;
+        let mut differs = false;
+        for k in 0..n {
+            let (x, v) = (out[k] as f64, out[n + k] as f64);
+            assert_eq!(x.is_nan(), rx[k].is_nan(), "x NaN at {k}");
+            assert_eq!(v.is_nan(), rv[k].is_nan(), "v NaN at {k}");
+            if !x.is_nan() {
+                assert!(
+                    (x - rx[k] as f64).abs() <= tol,
+                    "alpha {a} x at {k}: {x} vs {}",
+                    rx[k]
+                );
+                differs |= x.to_bits() != (rx[k] as f64).to_bits();
+            }
+            if !v.is_nan() {
+                assert!(
+                    (v - rv[k] as f64).abs() <= tol / t,
+                    "alpha {a} v at {k}: {v} vs {}",
+                    rv[k]
+                );
+            }
+        }
+        // The split ran (its rounding differs from the recursion somewhere).
+        assert!(
+            differs,
+            "alpha {a}: bit-identical, so the split did not run"
+        );
+        // In two chunks: the second continues from the first's state.
+        let mut st = [TrackState::default()];
+        let h = n / 2;
+        let mut got = vec![0f32; 2 * n];
+        for (c0, c1) in [(0, h), (h, n)] {
+            let meas = Measurements::contiguous(&z[c0..c1], 1, c1 - c0, 1).unwrap();
+            let mut o = vec![0f32; 2 * (c1 - c0)];
+            filter_ab_f32(
+                &[(a, b, t)],
+                Init::TwoPoint,
+                &meas,
+                &mut st,
+                &mut o,
+                None,
+                true,
+            )
+            .unwrap();
+            got[c0..c1].copy_from_slice(&o[..c1 - c0]);
+            got[n + c0..n + c1].copy_from_slice(&o[c1 - c0..]);
+        }
+        for k in 0..n {
+            let (x, v) = (got[k] as f64, got[n + k] as f64);
+            assert!(
+                x.is_nan() == rx[k].is_nan() && (x.is_nan() || (x - rx[k] as f64).abs() <= tol)
+            );
+            assert!(
+                v.is_nan() == rv[k].is_nan() && (v.is_nan() || (v - rv[k] as f64).abs() <= tol / t)
+            );
+        }
+    }
+}
