@@ -4,9 +4,13 @@
 //! Invariants: no panic; a run in two chunks (streaming state) is bit for bit
 //! one run; sequential and parallel runs agree bit for bit; and when the
 //! filter is stable, the period moderate and every measurement finite and
-//! bounded, every estimate after start-up is finite.
+//! bounded, every estimate after start-up is finite. Alpha-beta in float32
+//! arithmetic (`f32arith`, batches of 16-20 tracks so the vector rows run):
+//! no panic, parallel = sequential, two chunks = one run, and each track
+//! equals the track run alone (the scalar loop), bit for bit.
 #![no_main]
 
+use abkit_core::filter::f32arith::filter_ab_f32;
 use abkit_core::filter::{filter_ab, filter_general, Gains, Init, Measurements, TrackState};
 use libfuzzer_sys::fuzz_target;
 
@@ -142,9 +146,115 @@ fn check_finite(c: &Case, n: usize, out: &[f64]) {
     }
 }
 
+/// `filter_ab_f32` on `nt x ns` float32 samples with the given params.
+fn run32(
+    p: &[(f64, f64, f64)],
+    init: Init,
+    z: &[f32],
+    nt: usize,
+    ns: usize,
+    st: &mut [TrackState],
+    par: bool,
+) -> Option<Vec<f32>> {
+    let m = Measurements::contiguous(z, nt, ns, 1).ok()?;
+    let mut o = vec![0f32; 2 * nt * ns];
+    filter_ab_f32(p, init, &m, st, &mut o, None, par).ok()?;
+    Some(o)
+}
+
+fn same32(a: &[f32], b: &[f32]) -> bool {
+    a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .all(|(x, y)| x.to_bits() == y.to_bits() || x == y || (x.is_nan() && y.is_nan()))
+}
+
+/// Alpha-beta in float32 arithmetic over a batch big enough for the vector
+/// rows (16-20 tracks of 64-200 samples), NaN runs and values from the
+/// input.
+fn f32_case(b: &mut Bytes) {
+    let (a, be, t) = if b.u8() % 2 == 0 {
+        (b.f64(), b.f64(), b.f64())
+    } else {
+        (
+            b.in_range(1e-4, 1.99),
+            b.in_range(1e-6, 1.0),
+            b.in_range(1e-3, 1e3),
+        )
+    };
+    let nt = 16 + b.usize_below(5);
+    let ns = 64 + b.usize_below(137);
+    let init = if b.u8() % 2 == 0 {
+        Init::First
+    } else {
+        Init::TwoPoint
+    };
+    let (nan_every, off, mode) = (1 + b.usize_below(64), b.in_range(-1e5, 1e5), b.u8());
+    let mut z = vec![0f32; nt * ns];
+    for (i, v) in z.iter_mut().enumerate() {
+        let k = i % ns;
+        *v = if (i / 7 + k) % nan_every == 0 && mode % 2 == 0 {
+            f32::NAN
+        } else if !b.is_empty() && mode % 3 == 0 {
+            b.f64() as f32
+        } else {
+            (off + k as f64 * 0.25 + (i % 13) as f64 * 0.1) as f32
+        };
+    }
+    let p = [(a, be, t)];
+    let mut st = vec![TrackState::default(); nt];
+    let Some(out) = run32(&p, init, &z, nt, ns, &mut st, false) else {
+        return;
+    };
+    let mut st_p = vec![TrackState::default(); nt];
+    let out_p = run32(&p, init, &z, nt, ns, &mut st_p, true).expect("parallel run failed");
+    assert!(
+        same32(&out, &out_p),
+        "float32 arithmetic: parallel run differs"
+    );
+    // Two chunks with the streaming state.
+    let k = b.usize_below(ns + 1);
+    let mut st2 = vec![TrackState::default(); nt];
+    for (lo, hi) in [(0, k), (k, ns)] {
+        let w = hi - lo;
+        let zc: Vec<f32> = (0..nt)
+            .flat_map(|i| z[i * ns + lo..i * ns + hi].to_vec())
+            .collect();
+        let o = run32(&p, init, &zc, nt, w, &mut st2, false).expect("chunk failed");
+        for comp in 0..2 {
+            for i in 0..nt {
+                let got = &o[(comp * nt + i) * w..(comp * nt + i) * w + w];
+                let want = &out[(comp * nt + i) * ns + lo..(comp * nt + i) * ns + hi];
+                assert!(
+                    same32(got, want),
+                    "float32 arithmetic: chunk differs (track {i}, split {k})"
+                );
+            }
+        }
+    }
+    // Each track alone (a batch of one: the scalar loop).
+    for i in [0, nt / 2, nt - 1] {
+        let mut s1 = [TrackState::default()];
+        let o = run32(&p, init, &z[i * ns..(i + 1) * ns], 1, ns, &mut s1, false).expect("alone");
+        assert!(
+            same32(&o[..ns], &out[i * ns..(i + 1) * ns]),
+            "float32: track {i} alone differs (x)"
+        );
+        assert!(
+            same32(&o[ns..], &out[(nt + i) * ns..(nt + i + 1) * ns]),
+            "float32: track {i} alone differs (v)"
+        );
+    }
+}
+
 fuzz_target!(|data: &[u8]| {
     let mut b = Bytes::new(data);
-    match b.u8() % 3 {
+    let kind = b.u8();
+    if kind % 5 == 4 {
+        f32_case(&mut b);
+        return;
+    }
+    match kind % 3 {
         0 => {
             // alpha-beta
             let (a, be, t) = if b.u8() % 2 == 0 {
