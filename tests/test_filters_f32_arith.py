@@ -155,6 +155,9 @@ def test_errors():
     ):
         with pytest.raises(ValueError, match="float32_arithmetic=True"):
             call()
+    # a period beyond float32's range: a ValueError naming it
+    with pytest.raises(ValueError, match="T"):
+        abkit.AlphaBetaFilter(0.5, 0.2, 1e39, float32_arithmetic=True).run(z)
     # float64 data: every path available (float64 arithmetic)
     z64 = z.astype(np.float64)
     f.smooth(z64)

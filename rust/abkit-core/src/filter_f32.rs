@@ -18,7 +18,10 @@
 //! [`TrackState`]), so a track run in chunks is bit-identical to one call,
 //! and every path (scalar loop, AVX2 rows) runs the same operations in the
 //! same order: results are bit-identical whatever the thread count, the
-//! batch a track is in or the chunking.
+//! batch a track is in or the chunking. The one exception is the default
+//! kernels' too: a long track in a group of fewer than [`LANES`] tracks is
+//! split into segments ([`split_fma`]), within `f32` rounding of the
+//! unsplit run.
 //!
 //! Accuracy: each step rounds to `f32`, so the estimates drift from the
 //! `f64`-arithmetic ones by about `0.3 / alpha` `f32` epsilons of the
@@ -31,7 +34,8 @@
 //! the steps of both registers interleaved (two independent dependency
 //! chains), then the outputs' columns transposed back into rows. Outputs
 //! too big for the caches are written with non-temporal stores, each lane
-//! first stepping (scalar) to a sample whose `x` line starts a cache line.
+//! first stepping to a sample whose `x` line starts a cache line (heads and
+//! tails as vector steps of all lanes, each lane masked to its range).
 
 use super::{Init, Job, Measurements, TrackOut, TrackState};
 use crate::Result;
@@ -308,9 +312,10 @@ unsafe fn rows_fma(
 /// line; streaming is dropped unless every lane's `x` and `v` rows lie at
 /// the same line offset), the lanes run whole blocks together, then each
 /// its tail (heads and tails in [`avx2::column_steps`]: on rows of 100,
-/// 2.0 -> 1.8 ns per sample against the lanes stepped one by one). Lanes whose rows are shorter than `k0[l] +
-/// MIN_VECTOR_SAMPLES` (or whose outputs are shorter than `z[l]`) make
-/// every lane run the scalar steps instead (same results).
+/// 2.0 -> 1.8 ns per sample against the lanes stepped one by one). Lanes
+/// whose rows are shorter than `k0[l] + MIN_VECTOR_SAMPLES` (or whose
+/// outputs are shorter than `z[l]`) make every lane run the scalar steps
+/// instead (same results).
 ///
 /// # Safety
 /// AVX2 and FMA are available.
@@ -543,6 +548,19 @@ pub fn filter_ab_f32(
     parallel: bool,
 ) -> Result<()> {
     super::check_ab(params, z)?;
+    // The constants must be float32 numbers (a period beyond float32's range
+    // would round to infinity or zero: silently meaningless output).
+    for &(a, b, t) in params {
+        let c = C32::new(a, b, t);
+        if !(c.t.is_finite() && c.t > 0.0) {
+            return Err(crate::Error::domain("T", "finite and > 0 in float32", t));
+        }
+        for (name, v, w) in [("alpha", a, c.alpha), ("beta / T", b / t, c.g2)] {
+            if !(w.is_finite() && c.c1.is_finite()) {
+                return Err(crate::Error::domain(name, "finite in float32", v));
+            }
+        }
+    }
     let nt = super::streamed::<f32>(2 * z.n_tracks * z.n_samples * 4, true);
     super::run_batch::<f32, 2>(
         z.n_tracks,

@@ -261,10 +261,17 @@ fn f32_bad_arguments() {
     let meas = Measurements::contiguous(&z, 1, 10, 1).unwrap();
     let mut st = vec![TrackState::default(); 1];
     let mut out = vec![0f32; 20];
+    // NaN/Inf gains, T <= 0, and values beyond float32's range (T = 1e39
+    // rounds to infinity, 1e-50 to zero, alpha = 1e39 to infinity, beta / T
+    // = 1e40 to infinity).
     for p in [
         (f64::NAN, 0.1, 1.0),
         (0.5, f64::INFINITY, 1.0),
         (0.5, 0.1, 0.0),
+        (0.5, 0.1, 1e39),
+        (0.5, 0.1, 1e-50),
+        (1e39, 0.1, 1.0),
+        (0.5, 1e30, 1e-10),
     ] {
         assert!(
             filter_ab_f32(&[p], Init::TwoPoint, &meas, &mut st, &mut out, None, false).is_err()
