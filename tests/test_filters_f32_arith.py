@@ -155,6 +155,11 @@ def test_errors():
     ):
         with pytest.raises(ValueError, match="float32_arithmetic=True"):
             call()
+    # the report feed (no float32-arithmetic path yet)
+    trk = abkit.FeedTracker(f)
+    with pytest.raises(ValueError, match="float32_arithmetic=True"):
+        trk.update(np.array([1, 1, 2]), np.array([0.0, 0.1, 0.0]), np.ones(3, np.float32))
+    trk.update(np.array([1, 1, 2]), np.array([0.0, 0.1, 0.0]), np.ones(3))
     # a period beyond float32's range: a ValueError naming it
     with pytest.raises(ValueError, match="T"):
         abkit.AlphaBetaFilter(0.5, 0.2, 1e39, float32_arithmetic=True).run(z)

@@ -242,6 +242,8 @@ class FeedTracker:
         if zc.ndim not in want or (zc.ndim == 2 and zc.shape[1] != self.axes):
             raise ValueError(f"z must have shape (n_reports,){'' if self.axes > 1 else ' or (n_reports, 1)'}"
                              f"{f' or (n_reports, {self.axes})' if self.axes > 1 else ''}, got {zc.shape}")
+        if getattr(self.filter, "float32_arithmetic", False) and zc.dtype == np.float32:
+            self.filter._no_float32("FeedTracker")
         if self._dtype is not None and zc.dtype != self._dtype:
             raise TypeError(f"z has dtype {zc.dtype}; this tracker runs {self._dtype} (the first batch's)")
         n = zc.shape[0]

@@ -884,8 +884,8 @@ class AlphaBetaFilter(FixedGainFilter):
         default kernels (then within float32 rounding of the unsplit run).
         Available for :meth:`run` on regular batches (not with ``t``,
         ``offsets``, ``axes``, ``max_gap``, ``on_duplicate``, nor for
-        :meth:`smooth` or ``transient``): those raise a ValueError on
-        float32 data.
+        :meth:`smooth`, ``transient`` or :class:`abkit.FeedTracker`): those
+        raise a ValueError on float32 data.
 
     Examples
     --------
