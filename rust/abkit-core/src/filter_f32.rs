@@ -420,10 +420,12 @@ fn steps(
 /// state, the others from a guess (position from the sample before the
 /// segment, velocity zero); pass 2, in order, propagates each segment's
 /// start-state error through the loop and adds it to the outputs until it
-/// is below 2^-30 of the estimate (a quarter of a float32 ulp), giving each
-/// segment's true end state. The result agrees with the unsplit run within
-/// float32 rounding (both within the documented drift of the float64
+/// is below 2^-30 of the estimate (1/128 of a float32 epsilon), giving
+/// each segment's true end state. The result agrees with the unsplit run
+/// within float32 rounding (both within the documented drift of the float64
 /// result), not bit for bit; the segmentation depends only on the length.
+/// It runs where the AVX2 lanes do (elsewhere the track runs unsplit: the
+/// same results within that rounding).
 ///
 /// # Safety
 /// AVX2 and FMA are available; `row` and the outputs have `n >= k0 +
