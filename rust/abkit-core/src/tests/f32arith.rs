@@ -97,7 +97,8 @@ fn same(a: f32, b: f32) -> bool {
 /// shared and per-track gains, and rows long enough for streamed outputs.
 #[test]
 fn f32_paths_match_the_reference_bit_for_bit() {
-    let cases: [(usize, usize); 4] = [(16, 300), (35, 257), (16, 70_000), (17, 64)];
+    // (16, 1024): rows 4 KiB apart (the lanes staggered).
+    let cases: [(usize, usize); 5] = [(16, 300), (35, 257), (16, 70_000), (17, 64), (16, 1024)];
     for (n_tracks, n) in cases {
         let nan = |i: usize, k: usize| {
             (i % 5 == 1 && k % 97 == 3)
