@@ -623,32 +623,28 @@ mod avx2 {
 
     /// A step without missed samples: [`super::step`]'s operations with
     /// `valid` true in every slot.
-    #[inline(always)]
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
     fn clean(k: &K, x: &mut __m256, v: &mut __m256, z: __m256) {
-        // SAFETY (all intrinsics here): the callers enable AVX2 and FMA.
-        unsafe {
-            let xp = _mm256_fmadd_ps(k.t, *v, *x);
-            let w = _mm256_fmadd_ps(k.g2, z, *v);
-            *x = _mm256_fmadd_ps(k.c1, xp, _mm256_mul_ps(k.alpha, z));
-            // -(g2 xp) + w rounded once: the scalar fma(-g2, xp, w).
-            *v = _mm256_fnmadd_ps(k.g2, xp, w);
-        }
+        let xp = _mm256_fmadd_ps(k.t, *v, *x);
+        let w = _mm256_fmadd_ps(k.g2, z, *v);
+        *x = _mm256_fmadd_ps(k.c1, xp, _mm256_mul_ps(k.alpha, z));
+        // -(g2 xp) + w rounded once: the scalar fma(-g2, xp, w).
+        *v = _mm256_fnmadd_ps(k.g2, xp, w);
     }
 
     /// A step where some `z` may be NaN: [`super::step`]'s selects.
-    #[inline(always)]
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
     fn masked(k: &K, one: __m256, x: &mut __m256, v: &mut __m256, z: __m256) {
-        // SAFETY (all intrinsics here): the callers enable AVX2 and FMA.
-        unsafe {
-            let xp = _mm256_fmadd_ps(k.t, *v, *x);
-            let ok = _mm256_cmp_ps::<_CMP_ORD_Q>(z, z);
-            let zz = _mm256_and_ps(z, ok);
-            let c1 = _mm256_blendv_ps(one, k.c1, ok);
-            let g = _mm256_and_ps(k.g2, ok);
-            let w = _mm256_fmadd_ps(g, zz, *v);
-            *x = _mm256_fmadd_ps(c1, xp, _mm256_mul_ps(k.alpha, zz));
-            *v = _mm256_fnmadd_ps(g, xp, w);
-        }
+        let xp = _mm256_fmadd_ps(k.t, *v, *x);
+        let ok = _mm256_cmp_ps::<_CMP_ORD_Q>(z, z);
+        let zz = _mm256_and_ps(z, ok);
+        let c1 = _mm256_blendv_ps(one, k.c1, ok);
+        let g = _mm256_and_ps(k.g2, ok);
+        let w = _mm256_fmadd_ps(g, zz, *v);
+        *x = _mm256_fmadd_ps(c1, xp, _mm256_mul_ps(k.alpha, zz));
+        *v = _mm256_fnmadd_ps(g, xp, w);
     }
 
     /// Steps of the [`LANES`] lanes, lane `l` over samples `from[l]..to[l]`
