@@ -190,3 +190,49 @@ def test_single_long_track_split(alpha, beta, T):
     a = f.run(z[: n // 3])
     b = f.run(z[n // 3 :], state=a.state)
     assert_states_close(np.concatenate([a.states, b.states], axis=-1), want, rtol=tol, kin_T=T)
+
+
+def test_row_kernels_bit_identical_across_cpus_paths(tmp_path):
+    # The same float32 batches in processes with the AVX-512 row lanes off
+    # (ABKIT_F32_AVX512=0: the AVX2 lanes, as on an AVX2-only CPU) and
+    # with every vector kernel off (ABKIT_DISABLE_SIMD=1: the scalar loop)
+    # give the same bits as the default: short rows straight from the
+    # batch (from memory: streamed outputs through the stages), longer
+    # rows in groups, rows with NaN at their starts and all-NaN rows.
+    import os
+    import subprocess
+    import sys
+
+    code = r"""
+import sys, numpy as np
+from abkit import AlphaBetaFilter
+rng = np.random.default_rng(11)
+res = {}
+for n_tracks, n in [(3000, 45), (20000, 100), (333, 300), (40, 2000)]:
+    z = rng.normal(size=(n_tracks, n)).cumsum(1).astype(np.float32) + 100.0
+    z[rng.random(z.shape) < 0.02] = np.nan
+    z[::9, :3] = np.nan
+    z[5::97] = np.nan
+    for init in ["two-point", "first"]:
+        f = AlphaBetaFilter(0.4, 0.1, 0.5, float32_arithmetic=True)
+        r = f.run(z, init=init)
+        res[f"{n_tracks}x{n}{init}"] = r.states
+        res[f"{n_tracks}x{n}{init}state"] = r.state._packed
+np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
+"""
+    runs = (("on", {}), ("avx2", {"ABKIT_F32_AVX512": "0"}), ("off", {"ABKIT_DISABLE_SIMD": "1"}))
+    for tag, extra in runs:
+        e = dict(os.environ)
+        for k in ("ABKIT_F32_AVX512", "ABKIT_DISABLE_SIMD"):
+            e.pop(k, None)
+        e.update(extra)
+        subprocess.run([sys.executable, "-c", code, str(tmp_path), tag], check=True, env=e)
+    off = np.load(tmp_path / "off.npz")
+    for tag, _ in runs[:-1]:
+        on = np.load(tmp_path / f"{tag}.npz")
+        assert sorted(on.files) == sorted(off.files)
+        for k in on.files:
+            a, b = on[k], off[k]
+            assert np.array_equal(np.isnan(a), np.isnan(b)), (tag, k)
+            ok = ~np.isnan(a)
+            assert np.array_equal(a[ok].view(np.uint8), b[ok].view(np.uint8)), (tag, k)

@@ -36,6 +36,16 @@
 //! too big for the caches are written with non-temporal stores, each lane
 //! first stepping to a sample whose `x` line starts a cache line (heads and
 //! tails as vector steps of all lanes, each lane masked to its range).
+//! On CPUs with AVX-512F the sixteen lanes are the sixteen slots of one
+//! register (`avx512::rows16`, 16 x 16 transposes; `ABKIT_F32_AVX512=0`
+//! turns it off): heads and tails are blocks in which each lane loads,
+//! steps and stores only its own samples (per-lane masks).
+//!
+//! Short contiguous rows (at most 256 samples) run straight from the batch
+//! ([`short_batch`]: no per-track jobs; with streamed outputs through
+//! stages of 16 rows drained as whole lines): 100,000 x 100 went from 1.7
+//! to 1.0 ns per sample on an AVX-512 Xeon (docs/benchmarks.md, session
+//! 24).
 
 use super::{Init, Job, Measurements, TrackOut, TrackState};
 use crate::Result;
@@ -200,7 +210,10 @@ fn group<const FMA: bool>(
     z: &Measurements<'_, f32>,
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
+    wide: bool,
 ) {
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = wide;
     let n = z.n_samples;
     let konst = |i: usize| {
         let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
@@ -231,7 +244,7 @@ fn group<const FMA: bool>(
         })
     {
         // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
-        unsafe { rows_fma(&konst, &k0, n, z, jobs, nt) };
+        unsafe { rows_fma(&konst, &k0, n, z, jobs, nt, wide) };
         return;
     }
     let few = jobs.len() < LANES;
@@ -250,7 +263,7 @@ fn group<const FMA: bool>(
                     let nt = super::streamed::<f32>(2 * n * 4, true);
                     // SAFETY: AVX2 and FMA checked; the row and outputs have
                     // n >= from + LANES * ls samples (the plan's segments).
-                    unsafe { split_fma(&c, st, from, ls, row, o, nt) };
+                    unsafe { split_fma(&c, st, from, ls, row, o, nt, wide) };
                     continue;
                 }
             }
@@ -277,6 +290,7 @@ unsafe fn rows_fma(
     z: &Measurements<'_, f32>,
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
+    wide: bool,
 ) {
     let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
     let mut x = [0f32; LANES];
@@ -296,7 +310,7 @@ unsafe fn rows_fma(
         sts[l] = Some(st);
     }
     // SAFETY: forwarded (AVX2 and FMA).
-    unsafe { lanes_fma(&c, &mut x, &mut v, k0, rows, xs, vs, nt) };
+    unsafe { lanes(wide, &c, &mut x, &mut v, k0, rows, xs, vs, nt, &mut || {}) };
     for (l, st) in sts.into_iter().enumerate() {
         if let Some(st) = st {
             st.x[0] = x[l] as f64;
@@ -381,6 +395,92 @@ unsafe fn lanes_fma(
     unsafe { avx2::column_steps(c, x, v, &from, &len, &zr, &xr, &vr) };
 }
 
+/// [`lanes_fma`] on AVX-512 CPUs: the sixteen lanes in one register
+/// ([`avx512::rows16`]), heads (to a line boundary for streamed outputs)
+/// and tails as blocks in which each lane takes only its own samples
+/// (per-lane masks), so no lane steps alone. Same results, bit for bit.
+///
+/// # Safety
+/// AVX-512F, AVX2 and FMA are available.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn lanes_512(
+    c: &[C32; LANES],
+    x: &mut [f32; LANES],
+    v: &mut [f32; LANES],
+    k0: &[usize; LANES],
+    z: [&[f32]; LANES],
+    mut xs: [&mut [f32]; LANES],
+    mut vs: [&mut [f32]; LANES],
+    nt: bool,
+    hook: &mut dyn FnMut(),
+) {
+    let len: [usize; LANES] = std::array::from_fn(|l| z[l].len());
+    let fits =
+        (0..LANES).all(|l| k0[l] <= len[l] && xs[l].len() >= len[l] && vs[l].len() >= len[l]);
+    if !fits {
+        steps(c, x, v, *k0, &len, &z, &mut xs, &mut vs);
+        return;
+    }
+    // Streamed stores need the x and v rows at the same line offset.
+    let nt = nt
+        && (0..LANES).all(|l| {
+            (vs[l].as_ptr() as usize)
+                .wrapping_sub(xs[l].as_ptr() as usize)
+                .is_multiple_of(64)
+        });
+    let cnt: [usize; LANES] = std::array::from_fn(|l| len[l] - k0[l]);
+    let head: [usize; LANES] = std::array::from_fn(|l| {
+        if nt {
+            let a = xs[l].as_ptr() as usize + 4 * k0[l];
+            ((64 - a % 64) % 64 / 4).min(cnt[l])
+        } else {
+            0
+        }
+    });
+    let zp: [*const f32; LANES] = std::array::from_fn(|l| z[l].as_ptr().wrapping_add(k0[l]));
+    let xp: [*mut f32; LANES] = std::array::from_fn(|l| xs[l].as_mut_ptr().wrapping_add(k0[l]));
+    let vp: [*mut f32; LANES] = std::array::from_fn(|l| vs[l].as_mut_ptr().wrapping_add(k0[l]));
+    // SAFETY: AVX-512F (this function's features); lane l's pointers are
+    // valid for cnt[l] = len[l] - k0[l] samples (checked above), the
+    // outputs distinct rows; with nt, x + head is line aligned (f32 rows
+    // are 4-byte aligned, so the head reaches the boundary) and v lies at
+    // the same line offset.
+    unsafe { avx512::rows16(c, x, v, &zp, &xp, &vp, &head, &cnt, nt, hook) };
+}
+
+/// The row lanes: [`lanes_512`] where `wide` (AVX-512 available), else
+/// [`lanes_fma`] (which does not call `hook`).
+///
+/// # Safety
+/// AVX2 and FMA are available, and AVX-512F too if `wide`.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn lanes(
+    wide: bool,
+    c: &[C32; LANES],
+    x: &mut [f32; LANES],
+    v: &mut [f32; LANES],
+    k0: &[usize; LANES],
+    z: [&[f32]; LANES],
+    xs: [&mut [f32]; LANES],
+    vs: [&mut [f32]; LANES],
+    nt: bool,
+    hook: &mut dyn FnMut(),
+) {
+    // SAFETY: forwarded.
+    unsafe {
+        if wide {
+            lanes_512(c, x, v, k0, z, xs, vs, nt, hook)
+        } else {
+            lanes_fma(c, x, v, k0, z, xs, vs, nt)
+        }
+    }
+}
+
 /// Scalar steps of [`LANES`] lanes, lane `l` over samples `from[l]..to[l]`,
 /// the lanes interleaved step by step (the operations of [`run_loop`] per
 /// lane).
@@ -440,6 +540,7 @@ unsafe fn split_fma(
     row: &[f32],
     o: &mut TrackOut<'_, f32, 2>,
     nt: bool,
+    wide: bool,
 ) {
     let n = row.len();
     let body_end = k0 + LANES * ls;
@@ -460,7 +561,20 @@ unsafe fn split_fma(
         let vs: [&mut [f32]; LANES] = std::array::from_fn(|_| vc.next().unwrap_or_default());
         let zs: [&[f32]; LANES] = std::array::from_fn(|j| &row[k0 + j * ls..k0 + (j + 1) * ls]);
         // SAFETY: forwarded (AVX2 and FMA).
-        unsafe { lanes_fma(&[*c; LANES], &mut ex, &mut ev, &[0; LANES], zs, xs, vs, nt) };
+        unsafe {
+            lanes(
+                wide,
+                &[*c; LANES],
+                &mut ex,
+                &mut ev,
+                &[0; LANES],
+                zs,
+                xs,
+                vs,
+                nt,
+                &mut || {},
+            )
+        };
     }
     // Pass 2: corrections, in order.
     let tiny = 2f32.powi(-30);
@@ -498,6 +612,233 @@ unsafe fn split_fma(
     run_loop::<true>(c, st, body_end, n, |k| row[k], o);
 }
 
+/// Longest rows of [`short_batch`] (its stages: two of 16 rows per output).
+#[cfg(target_arch = "x86_64")]
+const SHORT_MAX: usize = 256;
+
+/// Short contiguous rows (at most [`SHORT_MAX`] samples, no residuals, a
+/// CPU with AVX2 and FMA), [`LANES`] rows at a time straight from the
+/// batch: each row's start-up, then the row lanes ([`lanes`]) from each
+/// row's first running sample. Without the per-track jobs of
+/// [`super::run_batch`] (on rows of 100 their bookkeeping cost more than
+/// the lanes). With streamed outputs the lanes write a stage of 16 rows per
+/// output (in the caches; 16 rows are one contiguous region of the
+/// outputs), which goes out as whole lines streamed past the caches
+/// (`super::avx2::Drain`) while the lanes fill the other stage. Rows left
+/// over (fewer than [`LANES`] at the end of a chunk) run the scalar loop.
+/// The same operations as [`group`]: bit-identical to every other path.
+/// `None` when it does not apply.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+fn short_batch(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, f32>,
+    states: &mut [TrackState],
+    out: &mut [f32],
+    parallel: bool,
+    nt: bool,
+    wide: bool,
+) -> Option<Result<()>> {
+    let (n_tracks, n) = (z.n_tracks, z.n_samples);
+    let total = n_tracks.checked_mul(n)?;
+    if !(super::simd::avx2_available() && super::uses_fma())
+        || z.m != 1
+        || n == 0
+        || n > SHORT_MAX
+        || z.s_sample != 1
+        || !(z.s_track == n as isize || n_tracks == 1)
+        || states.len() != n_tracks
+        || out.len() != 2 * total
+    {
+        return None;
+    }
+    let zs = z.data.get(z.base..z.base.checked_add(total)?)?;
+    let (xs, vs) = out.split_at_mut(total);
+    let threads = if parallel {
+        rayon::current_num_threads()
+    } else {
+        1
+    };
+    // Chunks of whole tracks (the unit of parallel work), in whole groups.
+    let per = if threads > 1 {
+        n_tracks
+            .div_ceil(4 * threads)
+            .max((1usize << 18).div_ceil(n))
+            .next_multiple_of(LANES)
+    } else {
+        n_tracks
+    }
+    .max(1);
+    let run = |j0: usize, st: &mut [TrackState], xs: &mut [f32], vs: &mut [f32]| {
+        let zc = &zs[j0 * n..(j0 + st.len()) * n];
+        // SAFETY: AVX2 and FMA (checked above), AVX-512F if `wide`
+        // (`filter_ab_f32_with`); the chunk's rows and outputs hold
+        // st.len() rows of n samples.
+        unsafe { short_rows(params, j0, init, n, zc, st, xs, vs, nt, wide) }
+    };
+    let mut jobs = Vec::with_capacity(n_tracks.div_ceil(per));
+    let (mut st_rest, mut x_rest, mut v_rest) = (states, xs, vs);
+    let mut j0 = 0;
+    while j0 < n_tracks {
+        let cn = per.min(n_tracks - j0);
+        let (a, b) = std::mem::take(&mut st_rest).split_at_mut(cn);
+        let (xa, xb) = std::mem::take(&mut x_rest).split_at_mut(cn * n);
+        let (va, vb) = std::mem::take(&mut v_rest).split_at_mut(cn * n);
+        jobs.push((j0, a, xa, va));
+        (st_rest, x_rest, v_rest) = (b, xb, vb);
+        j0 += cn;
+    }
+    if jobs.len() > 1 {
+        use rayon::prelude::*;
+        jobs.into_par_iter()
+            .for_each(|(j0, st, x, v)| run(j0, st, x, v));
+    } else {
+        for (j0, st, x, v) in jobs {
+            run(j0, st, x, v);
+        }
+    }
+    Some(Ok(()))
+}
+
+/// One chunk of [`short_batch`]: tracks `j0..j0 + st.len()`, rows of `n`
+/// samples back to back in `z`, `xs`, `vs`.
+///
+/// # Safety
+/// AVX2 and FMA are available, AVX-512F too if `wide`; `z`, `xs` and `vs`
+/// hold `st.len()` rows of `n <= SHORT_MAX` samples.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn short_rows(
+    params: &[(f64, f64, f64)],
+    j0: usize,
+    init: Init,
+    n: usize,
+    z: &[f32],
+    st: &mut [TrackState],
+    xs: &mut [f32],
+    vs: &mut [f32],
+    nt: bool,
+    wide: bool,
+) {
+    use super::avx2::Drain;
+    let konst = |i: usize| {
+        let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
+        C32::new(a, b, t)
+    };
+    let seg = LANES * n;
+    // Two stages of (x, v), each LANES rows.
+    let mut stage = if nt { vec![0f32; 4 * seg] } else { Vec::new() };
+    let mut drains: [Option<Drain<f32>>; 2] = [None, None];
+    let mut cur = 0;
+    let cn = st.len();
+    let mut g0 = 0;
+    while g0 < cn {
+        let gl = (cn - g0).min(LANES);
+        let rows = g0 * n..(g0 + gl) * n;
+        let zg = &z[rows.clone()];
+        let sts = &mut st[g0..g0 + gl];
+        let (xd, vd): (&mut [f32], &mut [f32]) = if nt {
+            let (a, b) = stage[2 * cur * seg..(2 * cur + 2) * seg].split_at_mut(seg);
+            (&mut a[..gl * n], &mut b[..gl * n])
+        } else {
+            (&mut xs[rows.clone()], &mut vs[rows.clone()])
+        };
+        let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
+        let mut k0 = [n; LANES];
+        let mut x = [0f32; LANES];
+        let mut v = [0f32; LANES];
+        {
+            let mut xr = xd.chunks_exact_mut(n);
+            let mut vr = vd.chunks_exact_mut(n);
+            for (l, (s, zr)) in sts.iter_mut().zip(zg.chunks_exact(n)).enumerate() {
+                c[l] = konst(j0 + g0 + l);
+                let mut o = TrackOut {
+                    states: [xr.next().unwrap_or_default(), vr.next().unwrap_or_default()],
+                    resid: None,
+                };
+                k0[l] = start(&c[l], init, s, n, &|k| zr[k], &mut o);
+                if gl < LANES && s.phase == 2.0 {
+                    run_loop::<true>(&c[l], s, k0[l], n, |k| zr[k], &mut o);
+                }
+                x[l] = s.x[0] as f32;
+                v[l] = s.x[1] as f32;
+            }
+        }
+        if gl == LANES {
+            let mut zr = zg.chunks_exact(n);
+            let mut xr = xd.chunks_exact_mut(n);
+            let mut vr = vd.chunks_exact_mut(n);
+            let zl: [&[f32]; LANES] = std::array::from_fn(|_| zr.next().unwrap_or_default());
+            let xl: [&mut [f32]; LANES] = std::array::from_fn(|_| xr.next().unwrap_or_default());
+            let vl: [&mut [f32]; LANES] = std::array::from_fn(|_| vr.next().unwrap_or_default());
+            // Per whole block of the lanes: a share of the previous
+            // stages' lines streamed out, and of the next group's rows
+            // fetched (sixteen short rows defeat the hardware prefetcher).
+            let per_block = |lines: usize| lines.div_ceil((n / BLOCK).max(1));
+            let next = z.as_ptr().wrapping_add((g0 + LANES) * n);
+            let next_lines = if g0 + 2 * LANES <= cn {
+                seg * 4 / 64
+            } else {
+                0
+            };
+            let pf_per = per_block(next_lines);
+            let drain_per = drains
+                .iter()
+                .map(|d| d.as_ref().map_or(0, |d| per_block(d.lines_left())))
+                .max()
+                .unwrap_or(0);
+            let mut pf_at = 0;
+            let mut hook = || {
+                let to = (pf_at + pf_per).min(next_lines);
+                for q in pf_at..to {
+                    super::prefetch(next.wrapping_add(16 * q));
+                }
+                pf_at = to;
+                for d in drains.iter_mut().flatten() {
+                    // SAFETY: AVX2 (this function's features).
+                    unsafe { d.lines(drain_per) };
+                }
+            };
+            // A row not running after its start-up consumed all n samples
+            // (k0 = n): its lane takes no steps. SAFETY: forwarded.
+            unsafe { lanes(wide, &c, &mut x, &mut v, &k0, zl, xl, vl, false, &mut hook) };
+            for (l, s) in sts.iter_mut().enumerate() {
+                if s.phase == 2.0 {
+                    s.x[0] = x[l] as f64;
+                    s.x[1] = v[l] as f64;
+                }
+            }
+        }
+        if nt {
+            let src = stage[2 * cur * seg..].as_ptr();
+            // SAFETY: AVX2 (this function's features); the stage `cur` is
+            // not written again until its drain finished (the next call of
+            // `follow` on the same slot finishes it, before the stage is
+            // reused two groups later); the outputs are not otherwise
+            // accessed meanwhile.
+            unsafe {
+                let [dx, dv] = &mut drains;
+                let nx = Drain::follow(dx, &mut xs[rows.clone()], src);
+                let nv = Drain::follow(dv, &mut vs[rows], src.add(seg));
+                drains = [Some(nx), Some(nv)];
+            }
+            cur ^= 1;
+        }
+        g0 += gl;
+    }
+    if nt {
+        // SAFETY: AVX2.
+        unsafe {
+            for d in drains.iter_mut().flatten() {
+                d.finish();
+            }
+        }
+        super::store_fence();
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "fma")]
 fn group_fma(
@@ -506,8 +847,9 @@ fn group_fma(
     z: &Measurements<'_, f32>,
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
+    wide: bool,
 ) {
-    group::<true>(params, init, z, jobs, nt)
+    group::<true>(params, init, z, jobs, nt, wide)
 }
 
 fn group_dispatch(
@@ -516,23 +858,24 @@ fn group_dispatch(
     z: &Measurements<'_, f32>,
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
+    wide: bool,
 ) {
     #[cfg(target_arch = "x86_64")]
     {
         if super::uses_fma() {
             // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
-            unsafe { group_fma(params, init, z, jobs, nt) };
+            unsafe { group_fma(params, init, z, jobs, nt, wide) };
             return;
         }
-        group::<false>(params, init, z, jobs, nt)
+        group::<false>(params, init, z, jobs, nt, wide)
     }
     #[cfg(target_arch = "aarch64")]
     {
-        group::<true>(params, init, z, jobs, nt)
+        group::<true>(params, init, z, jobs, nt, wide)
     }
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     {
-        group::<false>(params, init, z, jobs, nt)
+        group::<false>(params, init, z, jobs, nt, wide)
     }
 }
 
@@ -549,6 +892,46 @@ pub fn filter_ab_f32(
     resid: Option<&mut [f32]>,
     parallel: bool,
 ) -> Result<()> {
+    filter_ab_f32_with(params, init, z, states, out, resid, parallel, None)
+}
+
+/// Whether this CPU can run [`lanes_512`] (AVX-512F, AVX2 and FMA, vector
+/// lanes not disabled).
+fn avx512_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        super::simd::available() && super::simd::avx2_available()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether the row lanes run in AVX-512 registers ([`lanes_512`]): where
+/// available, unless `ABKIT_F32_AVX512=0` (read once; the results are the
+/// same bits either way).
+fn wide_lanes() -> bool {
+    static W: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *W.get_or_init(|| {
+        avx512_available() && std::env::var_os("ABKIT_F32_AVX512").is_none_or(|v| v != "0")
+    })
+}
+
+/// [`filter_ab_f32`] with the choice of row lanes made by the caller
+/// (`Some(true)` AVX-512 where available; `None` the default, see
+/// [`wide_lanes`]), for the tests of both.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn filter_ab_f32_with(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    z: &Measurements<'_, f32>,
+    states: &mut [TrackState],
+    out: &mut [f32],
+    resid: Option<&mut [f32]>,
+    parallel: bool,
+    wide: Option<bool>,
+) -> Result<()> {
     super::check_ab(params, z)?;
     // The constants must be float32 numbers (a period beyond float32's range
     // would round to infinity or zero: silently meaningless output).
@@ -564,6 +947,16 @@ pub fn filter_ab_f32(
         }
     }
     let nt = super::streamed::<f32>(2 * z.n_tracks * z.n_samples * 4, true);
+    let wide = match wide {
+        Some(w) => w && avx512_available(),
+        None => wide_lanes(),
+    };
+    #[cfg(target_arch = "x86_64")]
+    if resid.is_none() {
+        if let Some(r) = short_batch(params, init, z, states, out, parallel, nt, wide) {
+            return r;
+        }
+    }
     super::run_batch::<f32, 2>(
         z.n_tracks,
         z.n_samples,
@@ -573,7 +966,7 @@ pub fn filter_ab_f32(
         resid,
         parallel,
         LANES,
-        |jobs| group_dispatch(params, init, z, jobs, nt),
+        |jobs| group_dispatch(params, init, z, jobs, nt, wide),
     )
 }
 
@@ -862,6 +1255,264 @@ mod avx2 {
             _mm256_storeu_ps(x.as_mut_ptr().add(8), x1);
             _mm256_storeu_ps(v.as_mut_ptr(), v0);
             _mm256_storeu_ps(v.as_mut_ptr().add(8), v1);
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::{BLOCK, C32, LANES};
+    use std::arch::x86_64::*;
+
+    /// In-place transpose of the 16 x 16 matrix whose rows are `r`
+    /// (64 shuffles: in-lane unpacks and shuffles, then two rounds of
+    /// 128-bit lane shuffles).
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn tr16(r: &mut [__m512; 16]) {
+        let mut t = [_mm512_setzero_ps(); 16];
+        for i in (0..16).step_by(4) {
+            t[i] = _mm512_unpacklo_ps(r[i], r[i + 1]);
+            t[i + 1] = _mm512_unpackhi_ps(r[i], r[i + 1]);
+            t[i + 2] = _mm512_unpacklo_ps(r[i + 2], r[i + 3]);
+            t[i + 3] = _mm512_unpackhi_ps(r[i + 2], r[i + 3]);
+        }
+        // u[4a + c], 128-bit lane q: column 4q + c of rows 4a..4a+4.
+        let mut u = [_mm512_setzero_ps(); 16];
+        for i in (0..16).step_by(4) {
+            u[i] = _mm512_shuffle_ps::<0x44>(t[i], t[i + 2]);
+            u[i + 1] = _mm512_shuffle_ps::<0xEE>(t[i], t[i + 2]);
+            u[i + 2] = _mm512_shuffle_ps::<0x44>(t[i + 1], t[i + 3]);
+            u[i + 3] = _mm512_shuffle_ps::<0xEE>(t[i + 1], t[i + 3]);
+        }
+        for c in 0..4 {
+            t[c] = _mm512_shuffle_f32x4::<0x88>(u[c], u[4 + c]);
+            t[4 + c] = _mm512_shuffle_f32x4::<0xDD>(u[c], u[4 + c]);
+            t[8 + c] = _mm512_shuffle_f32x4::<0x88>(u[8 + c], u[12 + c]);
+            t[12 + c] = _mm512_shuffle_f32x4::<0xDD>(u[8 + c], u[12 + c]);
+        }
+        for i in 0..8 {
+            r[i] = _mm512_shuffle_f32x4::<0x88>(t[i], t[8 + i]);
+            r[8 + i] = _mm512_shuffle_f32x4::<0xDD>(t[i], t[8 + i]);
+        }
+    }
+
+    /// The lanes' constants.
+    #[derive(Clone, Copy)]
+    struct K {
+        t: __m512,
+        alpha: __m512,
+        c1: __m512,
+        g2: __m512,
+        one: __m512,
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn konsts(c: &[C32; LANES]) -> K {
+        let gather = |f: &dyn Fn(&C32) -> f32| {
+            let a: [f32; LANES] = std::array::from_fn(|l| f(&c[l]));
+            // SAFETY: `a` holds 16 f32.
+            unsafe { _mm512_loadu_ps(a.as_ptr()) }
+        };
+        K {
+            t: gather(&|c| c.t),
+            alpha: gather(&|c| c.alpha),
+            c1: gather(&|c| c.c1),
+            g2: gather(&|c| c.g2),
+            one: _mm512_set1_ps(1.0),
+        }
+    }
+
+    /// A step without missed samples: [`super::step`]'s operations with
+    /// `valid` true in every slot.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn clean(k: &K, x: &mut __m512, v: &mut __m512, z: __m512) {
+        let xp = _mm512_fmadd_ps(k.t, *v, *x);
+        let w = _mm512_fmadd_ps(k.g2, z, *v);
+        *x = _mm512_fmadd_ps(k.c1, xp, _mm512_mul_ps(k.alpha, z));
+        // -(g2 xp) + w rounded once: the scalar fma(-g2, xp, w).
+        *v = _mm512_fnmadd_ps(k.g2, xp, w);
+    }
+
+    /// A step where some `z` may be NaN: [`super::step`]'s selects (a NaN
+    /// slot takes `z = +0`, `1 - alpha = 1`, `g2 = +0`).
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn masked(k: &K, x: &mut __m512, v: &mut __m512, z: __m512) {
+        let xp = _mm512_fmadd_ps(k.t, *v, *x);
+        let ok = _mm512_cmp_ps_mask::<_CMP_ORD_Q>(z, z);
+        let zz = _mm512_maskz_mov_ps(ok, z);
+        let c1 = _mm512_mask_blend_ps(ok, k.one, k.c1);
+        let g = _mm512_maskz_mov_ps(ok, k.g2);
+        let w = _mm512_fmadd_ps(g, zz, *v);
+        *x = _mm512_fmadd_ps(c1, xp, _mm512_mul_ps(k.alpha, zz));
+        *v = _mm512_fnmadd_ps(g, xp, w);
+    }
+
+    /// One block in which lane `l` takes `m[l] <= BLOCK` samples (see
+    /// [`rows16`]); the lanes' pointers advance by `m[l]`.
+    ///
+    /// # Safety
+    /// AVX-512F is available; lane `l`'s pointers are valid for `m[l]`
+    /// elements.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn partial(
+        k: &K,
+        m: &[usize; LANES],
+        xr: &mut __m512,
+        vr: &mut __m512,
+        zp: &mut [*const f32; LANES],
+        xp: &mut [*mut f32; LANES],
+        vp: &mut [*mut f32; LANES],
+    ) {
+        let mask = |l: usize| ((1u32 << m[l]) - 1) as __mmask16;
+        // SAFETY: lane l reads m[l] samples (masked).
+        let mut r: [__m512; 16] =
+            std::array::from_fn(|l| unsafe { _mm512_maskz_loadu_ps(mask(l), zp[l]) });
+        tr16(&mut r);
+        let counts: [i32; LANES] = std::array::from_fn(|l| m[l] as i32);
+        // SAFETY: 16 i32.
+        let counts = unsafe { _mm512_loadu_si512(counts.as_ptr() as *const _) };
+        let most = m.iter().copied().max().unwrap_or(0);
+        let mut sx = [_mm512_setzero_ps(); BLOCK];
+        let mut sv = [_mm512_setzero_ps(); BLOCK];
+        for j in 0..most {
+            let on = _mm512_cmpgt_epi32_mask(counts, _mm512_set1_epi32(j as i32));
+            let (mut x1, mut v1) = (*xr, *vr);
+            masked(k, &mut x1, &mut v1, r[j]);
+            *xr = _mm512_mask_mov_ps(*xr, on, x1);
+            *vr = _mm512_mask_mov_ps(*vr, on, v1);
+            sx[j] = *xr;
+            sv[j] = *vr;
+        }
+        tr16(&mut sx);
+        tr16(&mut sv);
+        for l in 0..LANES {
+            // SAFETY: m[l] samples (masked stores).
+            unsafe {
+                _mm512_mask_storeu_ps(xp[l], mask(l), sx[l]);
+                _mm512_mask_storeu_ps(vp[l], mask(l), sv[l]);
+                zp[l] = zp[l].add(m[l]);
+                xp[l] = xp[l].add(m[l]);
+                vp[l] = vp[l].add(m[l]);
+            }
+        }
+    }
+
+    /// Lane `l` steps its states `x[l]`, `v[l]` over `cnt[l]` samples from
+    /// `z[l]`, writing `xo[l]`, `vo[l]`, the sixteen lanes in the sixteen
+    /// slots of one register: first a block in which lane `l` takes only
+    /// its `head[l] <= cnt[l]` (< 16) first samples, then whole blocks of
+    /// [`BLOCK`] steps of every lane (a 16 x 16 transpose of the rows'
+    /// `z` in, the steps, two transposes out, each output line stored
+    /// whole, streamed with `nt`), then blocks in which lane `l` takes what
+    /// is left of its samples. In the partial blocks the rows are loaded
+    /// and stored under per-lane masks and a lane's state is kept (a masked
+    /// move) on the steps past its count, so every lane gets exactly its
+    /// scalar steps.
+    ///
+    /// # Safety
+    /// AVX-512F is available; `z[l]`, `xo[l]` and `vo[l]` are valid for
+    /// `cnt[l]` elements, outputs not overlapping each other or the inputs;
+    /// with `nt`, `xo[l] + head[l]` and `vo[l] + head[l]` are 64-byte
+    /// aligned. `hook` runs after each whole block (the caller's drains
+    /// and prefetches, spread over the blocks).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    #[target_feature(enable = "avx512f")]
+    pub(super) unsafe fn rows16(
+        c: &[C32; LANES],
+        x: &mut [f32; LANES],
+        v: &mut [f32; LANES],
+        z: &[*const f32; LANES],
+        xo: &[*mut f32; LANES],
+        vo: &[*mut f32; LANES],
+        head: &[usize; LANES],
+        cnt: &[usize; LANES],
+        nt: bool,
+        hook: &mut dyn FnMut(),
+    ) {
+        let k = konsts(c);
+        // SAFETY: x and v hold 16 f32 each.
+        let (mut xr, mut vr) =
+            unsafe { (_mm512_loadu_ps(x.as_ptr()), _mm512_loadu_ps(v.as_ptr())) };
+        let (mut zp, mut xp, mut vp) = (*z, *xo, *vo);
+        let mut left = *cnt;
+        let mut sx = [_mm512_setzero_ps(); BLOCK];
+        let mut sv = [_mm512_setzero_ps(); BLOCK];
+        if head.iter().any(|&h| h > 0) {
+            unsafe { partial(&k, head, &mut xr, &mut vr, &mut zp, &mut xp, &mut vp) };
+            for l in 0..LANES {
+                left[l] -= head[l];
+            }
+        }
+        let blocks = left.iter().copied().min().unwrap_or(0) / BLOCK;
+        let mut r = [_mm512_setzero_ps(); 16];
+        for b in 0..blocks {
+            let off = b * BLOCK;
+            let mut nan = 0;
+            for l in 0..LANES {
+                // SAFETY: off + BLOCK <= left[l].
+                r[l] = unsafe { _mm512_loadu_ps(zp[l].add(off)) };
+            }
+            for q in 0..8 {
+                nan |= _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(r[2 * q], r[2 * q + 1]);
+            }
+            tr16(&mut r);
+            if nan == 0 {
+                for j in 0..BLOCK {
+                    clean(&k, &mut xr, &mut vr, r[j]);
+                    sx[j] = xr;
+                    sv[j] = vr;
+                }
+            } else {
+                for j in 0..BLOCK {
+                    masked(&k, &mut xr, &mut vr, r[j]);
+                    sx[j] = xr;
+                    sv[j] = vr;
+                }
+            }
+            tr16(&mut sx);
+            tr16(&mut sv);
+            for l in 0..LANES {
+                // SAFETY: off + BLOCK <= left[l]; with nt the lanes'
+                // pointers are 64-byte aligned (the heads), so is off.
+                unsafe {
+                    let (px, pv) = (xp[l].add(off), vp[l].add(off));
+                    if nt {
+                        _mm512_stream_ps(px, sx[l]);
+                        _mm512_stream_ps(pv, sv[l]);
+                    } else {
+                        _mm512_storeu_ps(px, sx[l]);
+                        _mm512_storeu_ps(pv, sv[l]);
+                    }
+                }
+            }
+            hook();
+        }
+        for l in 0..LANES {
+            left[l] -= BLOCK * blocks;
+            // SAFETY: BLOCK * blocks <= left[l] (before).
+            unsafe {
+                zp[l] = zp[l].add(BLOCK * blocks);
+                xp[l] = xp[l].add(BLOCK * blocks);
+                vp[l] = vp[l].add(BLOCK * blocks);
+            }
+        }
+        while left.iter().any(|&n| n > 0) {
+            let m: [usize; LANES] = std::array::from_fn(|l| left[l].min(BLOCK));
+            unsafe { partial(&k, &m, &mut xr, &mut vr, &mut zp, &mut xp, &mut vp) };
+            for l in 0..LANES {
+                left[l] -= m[l];
+            }
+        }
+        // SAFETY: x and v hold 16 f32 each.
+        unsafe {
+            _mm512_storeu_ps(x.as_mut_ptr(), xr);
+            _mm512_storeu_ps(v.as_mut_ptr(), vr);
         }
     }
 }
