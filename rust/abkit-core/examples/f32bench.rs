@@ -32,11 +32,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut states = vec![TrackState::default(); n];
     let mut o64 = thp_vec(2 * n * len, |_| 0f32);
     let mut o32 = thp_vec(2 * n * len, |_| 0f32);
+    // The ceiling pass writes its own outputs (its streamed stores evict
+    // what they write: on o32 the kernels' "in cache" runs were not).
+    let mut oc = thp_vec(2 * n * len, |_| 0f32);
     let p = [(0.5, 0.2, 0.1)];
     let (mut b64, mut b32, mut bc) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     for _ in 0..reps {
         let t0 = Instant::now();
-        ceiling(&z, &mut o32);
+        ceiling(&z, &mut oc);
         bc = bc.min(t0.elapsed().as_secs_f64());
         states.fill(TrackState::default());
         let t0 = Instant::now();

@@ -36,10 +36,6 @@
 //! too big for the caches are written with non-temporal stores, each lane
 //! first stepping to a sample whose `x` line starts a cache line (heads and
 //! tails as vector steps of all lanes, each lane masked to its range).
-//! On CPUs with AVX-512F the sixteen lanes are the sixteen slots of one
-//! register (`avx512::rows16`, 16 x 16 transposes; `ABKIT_F32_AVX512=0`
-//! turns it off): heads and tails are blocks in which each lane loads,
-//! steps and stores only its own samples (per-lane masks).
 //!
 //! Short contiguous rows (at most 256 samples) run straight from the batch
 //! ([`short_batch`]: no per-track jobs; with streamed outputs through
@@ -210,10 +206,7 @@ fn group<const FMA: bool>(
     z: &Measurements<'_, f32>,
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
-    wide: bool,
 ) {
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = wide;
     let n = z.n_samples;
     let konst = |i: usize| {
         let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
@@ -244,7 +237,7 @@ fn group<const FMA: bool>(
         })
     {
         // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
-        unsafe { rows_fma(&konst, &k0, n, z, jobs, nt, wide) };
+        unsafe { rows_fma(&konst, &k0, n, z, jobs, nt) };
         return;
     }
     let few = jobs.len() < LANES;
@@ -263,7 +256,7 @@ fn group<const FMA: bool>(
                     let nt = super::streamed::<f32>(2 * n * 4, true);
                     // SAFETY: AVX2 and FMA checked; the row and outputs have
                     // n >= from + LANES * ls samples (the plan's segments).
-                    unsafe { split_fma(&c, st, from, ls, row, o, nt, wide) };
+                    unsafe { split_fma(&c, st, from, ls, row, o, nt) };
                     continue;
                 }
             }
@@ -290,7 +283,6 @@ unsafe fn rows_fma(
     z: &Measurements<'_, f32>,
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
-    wide: bool,
 ) {
     let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
     let mut x = [0f32; LANES];
@@ -310,7 +302,7 @@ unsafe fn rows_fma(
         sts[l] = Some(st);
     }
     // SAFETY: forwarded (AVX2 and FMA).
-    unsafe { lanes(wide, &c, &mut x, &mut v, k0, rows, xs, vs, nt, &mut || {}) };
+    unsafe { lanes_fma(&c, &mut x, &mut v, k0, rows, xs, vs, nt) };
     for (l, st) in sts.into_iter().enumerate() {
         if let Some(st) = st {
             st.x[0] = x[l] as f64;
@@ -395,92 +387,6 @@ unsafe fn lanes_fma(
     unsafe { avx2::column_steps(c, x, v, &from, &len, &zr, &xr, &vr) };
 }
 
-/// [`lanes_fma`] on AVX-512 CPUs: the sixteen lanes in one register
-/// ([`avx512::rows16`]), heads (to a line boundary for streamed outputs)
-/// and tails as blocks in which each lane takes only its own samples
-/// (per-lane masks), so no lane steps alone. Same results, bit for bit.
-///
-/// # Safety
-/// AVX-512F, AVX2 and FMA are available.
-#[cfg(target_arch = "x86_64")]
-#[allow(clippy::too_many_arguments)]
-#[target_feature(enable = "avx512f,avx2,fma")]
-unsafe fn lanes_512(
-    c: &[C32; LANES],
-    x: &mut [f32; LANES],
-    v: &mut [f32; LANES],
-    k0: &[usize; LANES],
-    z: [&[f32]; LANES],
-    mut xs: [&mut [f32]; LANES],
-    mut vs: [&mut [f32]; LANES],
-    nt: bool,
-    hook: &mut dyn FnMut(),
-) {
-    let len: [usize; LANES] = std::array::from_fn(|l| z[l].len());
-    let fits =
-        (0..LANES).all(|l| k0[l] <= len[l] && xs[l].len() >= len[l] && vs[l].len() >= len[l]);
-    if !fits {
-        steps(c, x, v, *k0, &len, &z, &mut xs, &mut vs);
-        return;
-    }
-    // Streamed stores need the x and v rows at the same line offset.
-    let nt = nt
-        && (0..LANES).all(|l| {
-            (vs[l].as_ptr() as usize)
-                .wrapping_sub(xs[l].as_ptr() as usize)
-                .is_multiple_of(64)
-        });
-    let cnt: [usize; LANES] = std::array::from_fn(|l| len[l] - k0[l]);
-    let head: [usize; LANES] = std::array::from_fn(|l| {
-        if nt {
-            let a = xs[l].as_ptr() as usize + 4 * k0[l];
-            ((64 - a % 64) % 64 / 4).min(cnt[l])
-        } else {
-            0
-        }
-    });
-    let zp: [*const f32; LANES] = std::array::from_fn(|l| z[l].as_ptr().wrapping_add(k0[l]));
-    let xp: [*mut f32; LANES] = std::array::from_fn(|l| xs[l].as_mut_ptr().wrapping_add(k0[l]));
-    let vp: [*mut f32; LANES] = std::array::from_fn(|l| vs[l].as_mut_ptr().wrapping_add(k0[l]));
-    // SAFETY: AVX-512F (this function's features); lane l's pointers are
-    // valid for cnt[l] = len[l] - k0[l] samples (checked above), the
-    // outputs distinct rows; with nt, x + head is line aligned (f32 rows
-    // are 4-byte aligned, so the head reaches the boundary) and v lies at
-    // the same line offset.
-    unsafe { avx512::rows16(c, x, v, &zp, &xp, &vp, &head, &cnt, nt, hook) };
-}
-
-/// The row lanes: [`lanes_512`] where `wide` (AVX-512 available), else
-/// [`lanes_fma`] (which does not call `hook`).
-///
-/// # Safety
-/// AVX2 and FMA are available, and AVX-512F too if `wide`.
-#[cfg(target_arch = "x86_64")]
-#[allow(clippy::too_many_arguments)]
-#[inline]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn lanes(
-    wide: bool,
-    c: &[C32; LANES],
-    x: &mut [f32; LANES],
-    v: &mut [f32; LANES],
-    k0: &[usize; LANES],
-    z: [&[f32]; LANES],
-    xs: [&mut [f32]; LANES],
-    vs: [&mut [f32]; LANES],
-    nt: bool,
-    hook: &mut dyn FnMut(),
-) {
-    // SAFETY: forwarded.
-    unsafe {
-        if wide {
-            lanes_512(c, x, v, k0, z, xs, vs, nt, hook)
-        } else {
-            lanes_fma(c, x, v, k0, z, xs, vs, nt)
-        }
-    }
-}
-
 /// Scalar steps of [`LANES`] lanes, lane `l` over samples `from[l]..to[l]`,
 /// the lanes interleaved step by step (the operations of [`run_loop`] per
 /// lane).
@@ -540,7 +446,6 @@ unsafe fn split_fma(
     row: &[f32],
     o: &mut TrackOut<'_, f32, 2>,
     nt: bool,
-    wide: bool,
 ) {
     let n = row.len();
     let body_end = k0 + LANES * ls;
@@ -561,20 +466,7 @@ unsafe fn split_fma(
         let vs: [&mut [f32]; LANES] = std::array::from_fn(|_| vc.next().unwrap_or_default());
         let zs: [&[f32]; LANES] = std::array::from_fn(|j| &row[k0 + j * ls..k0 + (j + 1) * ls]);
         // SAFETY: forwarded (AVX2 and FMA).
-        unsafe {
-            lanes(
-                wide,
-                &[*c; LANES],
-                &mut ex,
-                &mut ev,
-                &[0; LANES],
-                zs,
-                xs,
-                vs,
-                nt,
-                &mut || {},
-            )
-        };
+        unsafe { lanes_fma(&[*c; LANES], &mut ex, &mut ev, &[0; LANES], zs, xs, vs, nt) };
     }
     // Pass 2: corrections, in order.
     let tiny = 2f32.powi(-30);
@@ -618,13 +510,13 @@ const SHORT_MAX: usize = 256;
 
 /// Short contiguous rows (at most [`SHORT_MAX`] samples, no residuals, a
 /// CPU with AVX2 and FMA), [`LANES`] rows at a time straight from the
-/// batch: each row's start-up, then the row lanes ([`lanes`]) from each
+/// batch: each row's start-up, then the row lanes ([`lanes_fma`]) from each
 /// row's first running sample. Without the per-track jobs of
 /// [`super::run_batch`] (on rows of 100 their bookkeeping cost more than
 /// the lanes). With streamed outputs the lanes write a stage of 16 rows per
 /// output (in the caches; 16 rows are one contiguous region of the
 /// outputs), which goes out as whole lines streamed past the caches
-/// (`super::avx2::Drain`) while the lanes fill the other stage. Rows left
+/// (`super::avx2::Drain`) after the lanes filled the other stage. Rows left
 /// over (fewer than [`LANES`] at the end of a chunk) run the scalar loop.
 /// The same operations as [`group`]: bit-identical to every other path.
 /// `None` when it does not apply.
@@ -638,7 +530,6 @@ fn short_batch(
     out: &mut [f32],
     parallel: bool,
     nt: bool,
-    wide: bool,
 ) -> Option<Result<()>> {
     let (n_tracks, n) = (z.n_tracks, z.n_samples);
     let total = n_tracks.checked_mul(n)?;
@@ -672,10 +563,9 @@ fn short_batch(
     .max(1);
     let run = |j0: usize, st: &mut [TrackState], xs: &mut [f32], vs: &mut [f32]| {
         let zc = &zs[j0 * n..(j0 + st.len()) * n];
-        // SAFETY: AVX2 and FMA (checked above), AVX-512F if `wide`
-        // (`filter_ab_f32_with`); the chunk's rows and outputs hold
-        // st.len() rows of n samples.
-        unsafe { short_rows(params, j0, init, n, zc, st, xs, vs, nt, wide) }
+        // SAFETY: AVX2 and FMA (checked above); the chunk's rows and
+        // outputs hold st.len() rows of n samples.
+        unsafe { short_rows(params, j0, init, n, zc, st, xs, vs, nt) }
     };
     let mut jobs = Vec::with_capacity(n_tracks.div_ceil(per));
     let (mut st_rest, mut x_rest, mut v_rest) = (states, xs, vs);
@@ -705,7 +595,7 @@ fn short_batch(
 /// samples back to back in `z`, `xs`, `vs`.
 ///
 /// # Safety
-/// AVX2 and FMA are available, AVX-512F too if `wide`; `z`, `xs` and `vs`
+/// AVX2 and FMA are available; `z`, `xs` and `vs`
 /// hold `st.len()` rows of `n <= SHORT_MAX` samples.
 #[cfg(target_arch = "x86_64")]
 #[allow(clippy::too_many_arguments)]
@@ -720,7 +610,6 @@ unsafe fn short_rows(
     xs: &mut [f32],
     vs: &mut [f32],
     nt: bool,
-    wide: bool,
 ) {
     use super::avx2::Drain;
     let konst = |i: usize| {
@@ -736,6 +625,18 @@ unsafe fn short_rows(
     let mut g0 = 0;
     while g0 < cn {
         let gl = (cn - g0).min(LANES);
+        // The next group's rows and states, a group ahead (sixteen short
+        // rows defeat the hardware prefetcher).
+        if g0 + 2 * LANES <= cn {
+            let zn = z.as_ptr().wrapping_add((g0 + LANES) * n) as *const u8;
+            for q in (0..seg * 4).step_by(64) {
+                super::prefetch(zn.wrapping_add(q));
+            }
+            let sn = st.as_ptr().wrapping_add(g0 + LANES) as *const u8;
+            for q in (0..LANES * std::mem::size_of::<TrackState>()).step_by(64) {
+                super::prefetch(sn.wrapping_add(q));
+            }
+        }
         let rows = g0 * n..(g0 + gl) * n;
         let zg = &z[rows.clone()];
         let sts = &mut st[g0..g0 + gl];
@@ -773,37 +674,9 @@ unsafe fn short_rows(
             let zl: [&[f32]; LANES] = std::array::from_fn(|_| zr.next().unwrap_or_default());
             let xl: [&mut [f32]; LANES] = std::array::from_fn(|_| xr.next().unwrap_or_default());
             let vl: [&mut [f32]; LANES] = std::array::from_fn(|_| vr.next().unwrap_or_default());
-            // Per whole block of the lanes: a share of the previous
-            // stages' lines streamed out, and of the next group's rows
-            // fetched (sixteen short rows defeat the hardware prefetcher).
-            let per_block = |lines: usize| lines.div_ceil((n / BLOCK).max(1));
-            let next = z.as_ptr().wrapping_add((g0 + LANES) * n);
-            let next_lines = if g0 + 2 * LANES <= cn {
-                seg * 4 / 64
-            } else {
-                0
-            };
-            let pf_per = per_block(next_lines);
-            let drain_per = drains
-                .iter()
-                .map(|d| d.as_ref().map_or(0, |d| per_block(d.lines_left())))
-                .max()
-                .unwrap_or(0);
-            let mut pf_at = 0;
-            let mut hook = || {
-                let to = (pf_at + pf_per).min(next_lines);
-                for q in pf_at..to {
-                    super::prefetch(next.wrapping_add(16 * q));
-                }
-                pf_at = to;
-                for d in drains.iter_mut().flatten() {
-                    // SAFETY: AVX2 (this function's features).
-                    unsafe { d.lines(drain_per) };
-                }
-            };
             // A row not running after its start-up consumed all n samples
             // (k0 = n): its lane takes no steps. SAFETY: forwarded.
-            unsafe { lanes(wide, &c, &mut x, &mut v, &k0, zl, xl, vl, false, &mut hook) };
+            unsafe { lanes_fma(&c, &mut x, &mut v, &k0, zl, xl, vl, false) };
             for (l, s) in sts.iter_mut().enumerate() {
                 if s.phase == 2.0 {
                     s.x[0] = x[l] as f64;
@@ -847,9 +720,8 @@ fn group_fma(
     z: &Measurements<'_, f32>,
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
-    wide: bool,
 ) {
-    group::<true>(params, init, z, jobs, nt, wide)
+    group::<true>(params, init, z, jobs, nt)
 }
 
 fn group_dispatch(
@@ -858,24 +730,23 @@ fn group_dispatch(
     z: &Measurements<'_, f32>,
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
-    wide: bool,
 ) {
     #[cfg(target_arch = "x86_64")]
     {
         if super::uses_fma() {
             // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
-            unsafe { group_fma(params, init, z, jobs, nt, wide) };
+            unsafe { group_fma(params, init, z, jobs, nt) };
             return;
         }
-        group::<false>(params, init, z, jobs, nt, wide)
+        group::<false>(params, init, z, jobs, nt)
     }
     #[cfg(target_arch = "aarch64")]
     {
-        group::<true>(params, init, z, jobs, nt, wide)
+        group::<true>(params, init, z, jobs, nt)
     }
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     {
-        group::<false>(params, init, z, jobs, nt, wide)
+        group::<false>(params, init, z, jobs, nt)
     }
 }
 
@@ -892,46 +763,6 @@ pub fn filter_ab_f32(
     resid: Option<&mut [f32]>,
     parallel: bool,
 ) -> Result<()> {
-    filter_ab_f32_with(params, init, z, states, out, resid, parallel, None)
-}
-
-/// Whether this CPU can run [`lanes_512`] (AVX-512F, AVX2 and FMA, vector
-/// lanes not disabled).
-fn avx512_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        super::simd::available() && super::simd::avx2_available()
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
-/// Whether the row lanes run in AVX-512 registers ([`lanes_512`]): where
-/// available, unless `ABKIT_F32_AVX512=0` (read once; the results are the
-/// same bits either way).
-fn wide_lanes() -> bool {
-    static W: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *W.get_or_init(|| {
-        avx512_available() && std::env::var_os("ABKIT_F32_AVX512").is_none_or(|v| v != "0")
-    })
-}
-
-/// [`filter_ab_f32`] with the choice of row lanes made by the caller
-/// (`Some(true)` AVX-512 where available; `None` the default, see
-/// [`wide_lanes`]), for the tests of both.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn filter_ab_f32_with(
-    params: &[(f64, f64, f64)],
-    init: Init,
-    z: &Measurements<'_, f32>,
-    states: &mut [TrackState],
-    out: &mut [f32],
-    resid: Option<&mut [f32]>,
-    parallel: bool,
-    wide: Option<bool>,
-) -> Result<()> {
     super::check_ab(params, z)?;
     // The constants must be float32 numbers (a period beyond float32's range
     // would round to infinity or zero: silently meaningless output).
@@ -947,13 +778,9 @@ pub(crate) fn filter_ab_f32_with(
         }
     }
     let nt = super::streamed::<f32>(2 * z.n_tracks * z.n_samples * 4, true);
-    let wide = match wide {
-        Some(w) => w && avx512_available(),
-        None => wide_lanes(),
-    };
     #[cfg(target_arch = "x86_64")]
     if resid.is_none() {
-        if let Some(r) = short_batch(params, init, z, states, out, parallel, nt, wide) {
+        if let Some(r) = short_batch(params, init, z, states, out, parallel, nt) {
             return r;
         }
     }
@@ -966,7 +793,7 @@ pub(crate) fn filter_ab_f32_with(
         resid,
         parallel,
         LANES,
-        |jobs| group_dispatch(params, init, z, jobs, nt, wide),
+        |jobs| group_dispatch(params, init, z, jobs, nt),
     )
 }
 
@@ -1255,264 +1082,6 @@ mod avx2 {
             _mm256_storeu_ps(x.as_mut_ptr().add(8), x1);
             _mm256_storeu_ps(v.as_mut_ptr(), v0);
             _mm256_storeu_ps(v.as_mut_ptr().add(8), v1);
-        }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-mod avx512 {
-    use super::{BLOCK, C32, LANES};
-    use std::arch::x86_64::*;
-
-    /// In-place transpose of the 16 x 16 matrix whose rows are `r`
-    /// (64 shuffles: in-lane unpacks and shuffles, then two rounds of
-    /// 128-bit lane shuffles).
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    fn tr16(r: &mut [__m512; 16]) {
-        let mut t = [_mm512_setzero_ps(); 16];
-        for i in (0..16).step_by(4) {
-            t[i] = _mm512_unpacklo_ps(r[i], r[i + 1]);
-            t[i + 1] = _mm512_unpackhi_ps(r[i], r[i + 1]);
-            t[i + 2] = _mm512_unpacklo_ps(r[i + 2], r[i + 3]);
-            t[i + 3] = _mm512_unpackhi_ps(r[i + 2], r[i + 3]);
-        }
-        // u[4a + c], 128-bit lane q: column 4q + c of rows 4a..4a+4.
-        let mut u = [_mm512_setzero_ps(); 16];
-        for i in (0..16).step_by(4) {
-            u[i] = _mm512_shuffle_ps::<0x44>(t[i], t[i + 2]);
-            u[i + 1] = _mm512_shuffle_ps::<0xEE>(t[i], t[i + 2]);
-            u[i + 2] = _mm512_shuffle_ps::<0x44>(t[i + 1], t[i + 3]);
-            u[i + 3] = _mm512_shuffle_ps::<0xEE>(t[i + 1], t[i + 3]);
-        }
-        for c in 0..4 {
-            t[c] = _mm512_shuffle_f32x4::<0x88>(u[c], u[4 + c]);
-            t[4 + c] = _mm512_shuffle_f32x4::<0xDD>(u[c], u[4 + c]);
-            t[8 + c] = _mm512_shuffle_f32x4::<0x88>(u[8 + c], u[12 + c]);
-            t[12 + c] = _mm512_shuffle_f32x4::<0xDD>(u[8 + c], u[12 + c]);
-        }
-        for i in 0..8 {
-            r[i] = _mm512_shuffle_f32x4::<0x88>(t[i], t[8 + i]);
-            r[8 + i] = _mm512_shuffle_f32x4::<0xDD>(t[i], t[8 + i]);
-        }
-    }
-
-    /// The lanes' constants.
-    #[derive(Clone, Copy)]
-    struct K {
-        t: __m512,
-        alpha: __m512,
-        c1: __m512,
-        g2: __m512,
-        one: __m512,
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    fn konsts(c: &[C32; LANES]) -> K {
-        let gather = |f: &dyn Fn(&C32) -> f32| {
-            let a: [f32; LANES] = std::array::from_fn(|l| f(&c[l]));
-            // SAFETY: `a` holds 16 f32.
-            unsafe { _mm512_loadu_ps(a.as_ptr()) }
-        };
-        K {
-            t: gather(&|c| c.t),
-            alpha: gather(&|c| c.alpha),
-            c1: gather(&|c| c.c1),
-            g2: gather(&|c| c.g2),
-            one: _mm512_set1_ps(1.0),
-        }
-    }
-
-    /// A step without missed samples: [`super::step`]'s operations with
-    /// `valid` true in every slot.
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    fn clean(k: &K, x: &mut __m512, v: &mut __m512, z: __m512) {
-        let xp = _mm512_fmadd_ps(k.t, *v, *x);
-        let w = _mm512_fmadd_ps(k.g2, z, *v);
-        *x = _mm512_fmadd_ps(k.c1, xp, _mm512_mul_ps(k.alpha, z));
-        // -(g2 xp) + w rounded once: the scalar fma(-g2, xp, w).
-        *v = _mm512_fnmadd_ps(k.g2, xp, w);
-    }
-
-    /// A step where some `z` may be NaN: [`super::step`]'s selects (a NaN
-    /// slot takes `z = +0`, `1 - alpha = 1`, `g2 = +0`).
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    fn masked(k: &K, x: &mut __m512, v: &mut __m512, z: __m512) {
-        let xp = _mm512_fmadd_ps(k.t, *v, *x);
-        let ok = _mm512_cmp_ps_mask::<_CMP_ORD_Q>(z, z);
-        let zz = _mm512_maskz_mov_ps(ok, z);
-        let c1 = _mm512_mask_blend_ps(ok, k.one, k.c1);
-        let g = _mm512_maskz_mov_ps(ok, k.g2);
-        let w = _mm512_fmadd_ps(g, zz, *v);
-        *x = _mm512_fmadd_ps(c1, xp, _mm512_mul_ps(k.alpha, zz));
-        *v = _mm512_fnmadd_ps(g, xp, w);
-    }
-
-    /// One block in which lane `l` takes `m[l] <= BLOCK` samples (see
-    /// [`rows16`]); the lanes' pointers advance by `m[l]`.
-    ///
-    /// # Safety
-    /// AVX-512F is available; lane `l`'s pointers are valid for `m[l]`
-    /// elements.
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn partial(
-        k: &K,
-        m: &[usize; LANES],
-        xr: &mut __m512,
-        vr: &mut __m512,
-        zp: &mut [*const f32; LANES],
-        xp: &mut [*mut f32; LANES],
-        vp: &mut [*mut f32; LANES],
-    ) {
-        let mask = |l: usize| ((1u32 << m[l]) - 1) as __mmask16;
-        // SAFETY: lane l reads m[l] samples (masked).
-        let mut r: [__m512; 16] =
-            std::array::from_fn(|l| unsafe { _mm512_maskz_loadu_ps(mask(l), zp[l]) });
-        tr16(&mut r);
-        let counts: [i32; LANES] = std::array::from_fn(|l| m[l] as i32);
-        // SAFETY: 16 i32.
-        let counts = unsafe { _mm512_loadu_si512(counts.as_ptr() as *const _) };
-        let most = m.iter().copied().max().unwrap_or(0);
-        let mut sx = [_mm512_setzero_ps(); BLOCK];
-        let mut sv = [_mm512_setzero_ps(); BLOCK];
-        for j in 0..most {
-            let on = _mm512_cmpgt_epi32_mask(counts, _mm512_set1_epi32(j as i32));
-            let (mut x1, mut v1) = (*xr, *vr);
-            masked(k, &mut x1, &mut v1, r[j]);
-            *xr = _mm512_mask_mov_ps(*xr, on, x1);
-            *vr = _mm512_mask_mov_ps(*vr, on, v1);
-            sx[j] = *xr;
-            sv[j] = *vr;
-        }
-        tr16(&mut sx);
-        tr16(&mut sv);
-        for l in 0..LANES {
-            // SAFETY: m[l] samples (masked stores).
-            unsafe {
-                _mm512_mask_storeu_ps(xp[l], mask(l), sx[l]);
-                _mm512_mask_storeu_ps(vp[l], mask(l), sv[l]);
-                zp[l] = zp[l].add(m[l]);
-                xp[l] = xp[l].add(m[l]);
-                vp[l] = vp[l].add(m[l]);
-            }
-        }
-    }
-
-    /// Lane `l` steps its states `x[l]`, `v[l]` over `cnt[l]` samples from
-    /// `z[l]`, writing `xo[l]`, `vo[l]`, the sixteen lanes in the sixteen
-    /// slots of one register: first a block in which lane `l` takes only
-    /// its `head[l] <= cnt[l]` (< 16) first samples, then whole blocks of
-    /// [`BLOCK`] steps of every lane (a 16 x 16 transpose of the rows'
-    /// `z` in, the steps, two transposes out, each output line stored
-    /// whole, streamed with `nt`), then blocks in which lane `l` takes what
-    /// is left of its samples. In the partial blocks the rows are loaded
-    /// and stored under per-lane masks and a lane's state is kept (a masked
-    /// move) on the steps past its count, so every lane gets exactly its
-    /// scalar steps.
-    ///
-    /// # Safety
-    /// AVX-512F is available; `z[l]`, `xo[l]` and `vo[l]` are valid for
-    /// `cnt[l]` elements, outputs not overlapping each other or the inputs;
-    /// with `nt`, `xo[l] + head[l]` and `vo[l] + head[l]` are 64-byte
-    /// aligned. `hook` runs after each whole block (the caller's drains
-    /// and prefetches, spread over the blocks).
-    #[allow(clippy::too_many_arguments)]
-    #[inline(never)]
-    #[target_feature(enable = "avx512f")]
-    pub(super) unsafe fn rows16(
-        c: &[C32; LANES],
-        x: &mut [f32; LANES],
-        v: &mut [f32; LANES],
-        z: &[*const f32; LANES],
-        xo: &[*mut f32; LANES],
-        vo: &[*mut f32; LANES],
-        head: &[usize; LANES],
-        cnt: &[usize; LANES],
-        nt: bool,
-        hook: &mut dyn FnMut(),
-    ) {
-        let k = konsts(c);
-        // SAFETY: x and v hold 16 f32 each.
-        let (mut xr, mut vr) =
-            unsafe { (_mm512_loadu_ps(x.as_ptr()), _mm512_loadu_ps(v.as_ptr())) };
-        let (mut zp, mut xp, mut vp) = (*z, *xo, *vo);
-        let mut left = *cnt;
-        let mut sx = [_mm512_setzero_ps(); BLOCK];
-        let mut sv = [_mm512_setzero_ps(); BLOCK];
-        if head.iter().any(|&h| h > 0) {
-            unsafe { partial(&k, head, &mut xr, &mut vr, &mut zp, &mut xp, &mut vp) };
-            for l in 0..LANES {
-                left[l] -= head[l];
-            }
-        }
-        let blocks = left.iter().copied().min().unwrap_or(0) / BLOCK;
-        let mut r = [_mm512_setzero_ps(); 16];
-        for b in 0..blocks {
-            let off = b * BLOCK;
-            let mut nan = 0;
-            for l in 0..LANES {
-                // SAFETY: off + BLOCK <= left[l].
-                r[l] = unsafe { _mm512_loadu_ps(zp[l].add(off)) };
-            }
-            for q in 0..8 {
-                nan |= _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(r[2 * q], r[2 * q + 1]);
-            }
-            tr16(&mut r);
-            if nan == 0 {
-                for j in 0..BLOCK {
-                    clean(&k, &mut xr, &mut vr, r[j]);
-                    sx[j] = xr;
-                    sv[j] = vr;
-                }
-            } else {
-                for j in 0..BLOCK {
-                    masked(&k, &mut xr, &mut vr, r[j]);
-                    sx[j] = xr;
-                    sv[j] = vr;
-                }
-            }
-            tr16(&mut sx);
-            tr16(&mut sv);
-            for l in 0..LANES {
-                // SAFETY: off + BLOCK <= left[l]; with nt the lanes'
-                // pointers are 64-byte aligned (the heads), so is off.
-                unsafe {
-                    let (px, pv) = (xp[l].add(off), vp[l].add(off));
-                    if nt {
-                        _mm512_stream_ps(px, sx[l]);
-                        _mm512_stream_ps(pv, sv[l]);
-                    } else {
-                        _mm512_storeu_ps(px, sx[l]);
-                        _mm512_storeu_ps(pv, sv[l]);
-                    }
-                }
-            }
-            hook();
-        }
-        for l in 0..LANES {
-            left[l] -= BLOCK * blocks;
-            // SAFETY: BLOCK * blocks <= left[l] (before).
-            unsafe {
-                zp[l] = zp[l].add(BLOCK * blocks);
-                xp[l] = xp[l].add(BLOCK * blocks);
-                vp[l] = vp[l].add(BLOCK * blocks);
-            }
-        }
-        while left.iter().any(|&n| n > 0) {
-            let m: [usize; LANES] = std::array::from_fn(|l| left[l].min(BLOCK));
-            unsafe { partial(&k, &m, &mut xr, &mut vr, &mut zp, &mut xp, &mut vp) };
-            for l in 0..LANES {
-                left[l] -= m[l];
-            }
-        }
-        // SAFETY: x and v hold 16 f32 each.
-        unsafe {
-            _mm512_storeu_ps(x.as_mut_ptr(), xr);
-            _mm512_storeu_ps(v.as_mut_ptr(), vr);
         }
     }
 }

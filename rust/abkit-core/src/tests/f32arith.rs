@@ -71,8 +71,8 @@ fn data(n_tracks: usize, n: usize, off: f32, nan: impl Fn(usize, usize) -> bool)
     z
 }
 
-/// Run `filter_ab_f32` on the whole batch (the row lanes chosen by `wide`,
-/// see `filter_ab_f32_with`), from `st`; the outputs `(x, v)` per track.
+/// Run `filter_ab_f32` on the whole batch from `st`; the outputs `(x, v)`
+/// per track.
 #[allow(clippy::too_many_arguments)]
 fn run32_from(
     p: &[(f64, f64, f64)],
@@ -81,16 +81,15 @@ fn run32_from(
     n_tracks: usize,
     n: usize,
     parallel: bool,
-    wide: Option<bool>,
     st: &mut [TrackState],
 ) -> Vec<f32> {
     let meas = Measurements::contiguous(z, n_tracks, n, 1).unwrap();
     let mut out = vec![0f32; 2 * n_tracks * n];
-    filter_ab_f32_with(p, init, &meas, st, &mut out, None, parallel, wide).unwrap();
+    filter_ab_f32(p, init, &meas, st, &mut out, None, parallel).unwrap();
     out
 }
 
-/// [`run32_from`] from fresh states with the default row lanes.
+/// [`run32_from`] from fresh states.
 fn run32(
     p: &[(f64, f64, f64)],
     init: Init,
@@ -100,7 +99,7 @@ fn run32(
     parallel: bool,
 ) -> Vec<f32> {
     let mut st = vec![TrackState::default(); n_tracks];
-    run32_from(p, init, z, n_tracks, n, parallel, None, &mut st)
+    run32_from(p, init, z, n_tracks, n, parallel, &mut st)
 }
 
 fn same(a: f32, b: f32) -> bool {
@@ -148,55 +147,28 @@ fn f32_paths_match_the_reference_bit_for_bit() {
                 let out = run32(&params, init, &z, n_tracks, n, false);
                 let par = run32(&params, init, &z, n_tracks, n, true);
                 assert!(out.iter().zip(&par).all(|(a, b)| same(*a, *b)));
-                // Both row lanes (AVX2, and AVX-512 where the CPU has it),
-                // and the batch in two chunks of samples, the states
-                // carried (each chunk a contiguous batch of its own).
+                // The batch in two chunks of samples, the states carried
+                // (each chunk a contiguous batch of its own).
                 let h = n / 2 + 3;
                 let part = |a: usize, b: usize| -> Vec<f32> {
                     (0..n_tracks)
                         .flat_map(|i| z[i * n + a..i * n + b].iter().copied())
                         .collect()
                 };
-                for wide in [Some(false), Some(true)] {
-                    let o = run32_from(
-                        &params,
-                        init,
-                        &z,
-                        n_tracks,
-                        n,
-                        false,
-                        wide,
-                        &mut vec![TrackState::default(); n_tracks],
-                    );
-                    assert!(
-                        out.iter().zip(&o).all(|(a, b)| same(*a, *b)),
-                        "{n_tracks}x{n} {wide:?}"
-                    );
-                    let mut st = vec![TrackState::default(); n_tracks];
-                    let o1 =
-                        run32_from(&params, init, &part(0, h), n_tracks, h, true, wide, &mut st);
-                    let o2 = run32_from(
-                        &params,
-                        init,
-                        &part(h, n),
-                        n_tracks,
-                        n - h,
-                        true,
-                        wide,
-                        &mut st,
-                    );
-                    let (m1, m2) = (n_tracks * h, n_tracks * (n - h));
-                    for i in 0..n_tracks {
-                        for (c, base) in [(0, 0), (1, n_tracks * n)] {
-                            let got = o1[c * m1 + i * h..c * m1 + (i + 1) * h]
-                                .iter()
-                                .chain(&o2[c * m2 + i * (n - h)..c * m2 + (i + 1) * (n - h)]);
-                            let want = &out[base + i * n..base + (i + 1) * n];
-                            assert!(
-                                got.zip(want).all(|(a, b)| same(*a, *b)),
-                                "{n_tracks}x{n} {wide:?} chunked, track {i}"
-                            );
-                        }
+                let mut st = vec![TrackState::default(); n_tracks];
+                let o1 = run32_from(&params, init, &part(0, h), n_tracks, h, true, &mut st);
+                let o2 = run32_from(&params, init, &part(h, n), n_tracks, n - h, true, &mut st);
+                let (m1, m2) = (n_tracks * h, n_tracks * (n - h));
+                for i in 0..n_tracks {
+                    for (c, base) in [(0, 0), (1, n_tracks * n)] {
+                        let got = o1[c * m1 + i * h..c * m1 + (i + 1) * h]
+                            .iter()
+                            .chain(&o2[c * m2 + i * (n - h)..c * m2 + (i + 1) * (n - h)]);
+                        let want = &out[base + i * n..base + (i + 1) * n];
+                        assert!(
+                            got.zip(want).all(|(a, b)| same(*a, *b)),
+                            "{n_tracks}x{n} chunked, track {i}"
+                        );
                     }
                 }
                 for i in 0..n_tracks {
