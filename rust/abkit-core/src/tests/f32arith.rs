@@ -112,10 +112,11 @@ fn same(a: f32, b: f32) -> bool {
 /// shared and per-track gains, and rows long enough for streamed outputs.
 #[test]
 fn f32_paths_match_the_reference_bit_for_bit() {
-    // (16, 1024): rows 4 KiB apart (the lanes staggered). (35, 100) and
-    // (4100, 256): the short rows straight from the batch (`short_batch`),
-    // the second with streamed outputs through the stages.
-    let cases: [(usize, usize); 7] = [
+    // (16, 1024): rows 4 KiB apart (the lanes staggered). (35, 100),
+    // (4100, 256), (17, 64), (40, 3): the short rows straight from the
+    // batch (`short_batch`), (4100, 256) with streamed outputs through the
+    // stages, (17, 64) and (40, 3) all in the column steps.
+    let cases: [(usize, usize); 8] = [
         (16, 300),
         (35, 257),
         (16, 70_000),
@@ -123,6 +124,7 @@ fn f32_paths_match_the_reference_bit_for_bit() {
         (16, 1024),
         (35, 100),
         (4100, 256),
+        (40, 3),
     ];
     for (n_tracks, n) in cases {
         let nan = |i: usize, k: usize| {
@@ -149,7 +151,7 @@ fn f32_paths_match_the_reference_bit_for_bit() {
                 assert!(out.iter().zip(&par).all(|(a, b)| same(*a, *b)));
                 // The batch in two chunks of samples, the states carried
                 // (each chunk a contiguous batch of its own).
-                let h = n / 2 + 3;
+                let h = (n / 2 + 3).min(n - 1);
                 let part = |a: usize, b: usize| -> Vec<f32> {
                     (0..n_tracks)
                         .flat_map(|i| z[i * n + a..i * n + b].iter().copied())
@@ -188,7 +190,8 @@ fn f32_paths_match_the_reference_bit_for_bit() {
                     // The track alone (scalar path), in three chunks.
                     let mut st = [TrackState::default()];
                     let mut got = vec![0f32; 2 * n];
-                    for (c0, c1) in [(0, 5), (5, n / 2), (n / 2, n)] {
+                    let (q1, q2) = (5.min(n), (n / 2).max(5.min(n)));
+                    for (c0, c1) in [(0, q1), (q1, q2), (q2, n)] {
                         let meas = Measurements::contiguous(&row[c0..c1], 1, c1 - c0, 1).unwrap();
                         let mut o = vec![0f32; 2 * (c1 - c0)];
                         filter_ab_f32(&[(a, b, t)], init, &meas, &mut st, &mut o, None, false)
