@@ -113,10 +113,10 @@ fn same(a: f32, b: f32) -> bool {
 #[test]
 fn f32_paths_match_the_reference_bit_for_bit() {
     // (16, 1024): rows 4 KiB apart (the lanes staggered). (35, 100),
-    // (4100, 256), (17, 64), (40, 3): the short rows straight from the
-    // batch (`short_batch`), (4100, 256) with streamed outputs through the
-    // stages, (17, 64) and (40, 3) all in the column steps.
-    let cases: [(usize, usize); 8] = [
+    // (4100, 256), (17, 64), (33, 17), (40, 3): the short rows straight
+    // from the batch (`short_batch`), (4100, 256) with streamed outputs
+    // through the stages, (33, 17) and (40, 3) all in the column steps.
+    let cases: [(usize, usize); 9] = [
         (16, 300),
         (35, 257),
         (16, 70_000),
@@ -124,6 +124,7 @@ fn f32_paths_match_the_reference_bit_for_bit() {
         (16, 1024),
         (35, 100),
         (4100, 256),
+        (33, 17),
         (40, 3),
     ];
     for (n_tracks, n) in cases {
