@@ -37,7 +37,7 @@
 //! first stepping to a sample whose `x` line starts a cache line (heads and
 //! tails as vector steps of all lanes, each lane masked to its range).
 //!
-//! Short contiguous rows (at most 256 samples) run straight from the batch
+//! Short contiguous rows (at most 768 samples) run straight from the batch
 //! ([`short_batch`]: no per-track jobs; with streamed outputs through
 //! stages of 16 rows drained as whole lines; the next group's rows
 //! prefetched by the lanes): 100,000 x 100 went from 1.85 to 0.9 ns per
@@ -526,9 +526,13 @@ unsafe fn split_fma(
     run_loop::<true>(c, st, body_end, n, |k| row[k], o);
 }
 
-/// Longest rows of [`short_batch`] (its stages: two of 16 rows per output).
+/// Longest rows of [`short_batch`] (its stages: two of 16 rows per output,
+/// 192 KiB at most). Against the per-track groups, from memory on an
+/// AVX-512 Xeon: rows of 300 2.0 -> 0.93 ns per sample, 500 1.0-1.1 ->
+/// 0.85, 800 0.94 -> 0.85; rows of 1,000 0.67 -> 0.79 (slower: left to
+/// the groups; docs/benchmarks.md, session 24).
 #[cfg(target_arch = "x86_64")]
-const SHORT_MAX: usize = 256;
+const SHORT_MAX: usize = 768;
 
 /// Short contiguous rows (at most [`SHORT_MAX`] samples, no residuals, a
 /// CPU with AVX2 and FMA), [`LANES`] rows at a time straight from the

@@ -113,10 +113,11 @@ fn same(a: f32, b: f32) -> bool {
 #[test]
 fn f32_paths_match_the_reference_bit_for_bit() {
     // (16, 1024): rows 4 KiB apart (the lanes staggered). (35, 100),
-    // (4100, 256), (17, 64), (33, 17), (40, 3): the short rows straight
-    // from the batch (`short_batch`), (4100, 256) with streamed outputs
-    // through the stages, (33, 17) and (40, 3) all in the column steps.
-    let cases: [(usize, usize); 9] = [
+    // (4100, 256), (1600, 700), (17, 64), (33, 17), (40, 3): the short rows
+    // straight from the batch (`short_batch`), (4100, 256) and (1600, 700)
+    // with streamed outputs through the stages, (33, 17) and (40, 3) all in
+    // the column steps.
+    let cases: [(usize, usize); 10] = [
         (16, 300),
         (35, 257),
         (16, 70_000),
@@ -124,6 +125,7 @@ fn f32_paths_match_the_reference_bit_for_bit() {
         (16, 1024),
         (35, 100),
         (4100, 256),
+        (1600, 700),
         (33, 17),
         (40, 3),
     ];
