@@ -651,6 +651,30 @@ const NT_MIN_BYTES: usize = 8 << 20;
 /// scalar heads and tails cost more than the vector loop saves).
 const SIMD_MIN_SAMPLES: usize = 256;
 
+/// On AVX-512 CPUs, contiguous rows shorter than this (`[f32, f64]`) run
+/// in the flat kernel rather than the row lanes (from `SIMD_MIN_SAMPLES`
+/// up; shorter ones as before). On an Intel Xeon, 10^7 samples from memory,
+/// ns per sample, row lanes -> flat kernel: `f64` rows of 256 2.0 -> 1.3,
+/// 300 2.5 -> 1.3, 400 1.5-1.6 -> 1.3 (600 1.13-1.15 -> 1.17-1.28: not
+/// taken); `f32` 256 1.4 -> 0.75, 300 1.8-2.2 -> 0.73, 400 0.82-1.0 ->
+/// 0.59, 600 0.73-0.80 -> 0.58-0.62, 1,000 0.67 -> 0.63, 2,000 0.56 ->
+/// 0.51, 3,000 0.63 -> 0.60 (10,000 the same; docs/benchmarks.md, session
+/// 24).
+#[cfg(target_arch = "x86_64")]
+const FLAT_AVX512_MAX_SAMPLES: [usize; 2] = [4096, 512];
+
+/// Rows at least this long run in the row lanes rather than the flat
+/// kernel of `kind` (see [`FLAT_AVX512_MAX_SAMPLES`]).
+#[cfg(target_arch = "x86_64")]
+fn flat_max_samples<T: 'static>(kind: FlatKernel) -> usize {
+    match kind {
+        FlatKernel::Avx2 => SIMD_MIN_SAMPLES,
+        FlatKernel::Avx512 | FlatKernel::Avx512Generic => {
+            FLAT_AVX512_MAX_SAMPLES[usize::from(simd::is_f64::<T>())]
+        }
+    }
+}
+
 /// Tracks at most this long get software prefetching of the next group of
 /// tracks (the hardware prefetcher does not ramp up on short rows).
 const PREFETCH_MAX_SAMPLES: usize = 4096;
@@ -1997,8 +2021,9 @@ fn check_ab<T: IoFloat>(params: &[(f64, f64, f64)], z: &Measurements<'_, T>) -> 
     z.validate()
 }
 
-/// Short contiguous rows (fewer than [`SIMD_MIN_SAMPLES`] samples, no
-/// residuals), and on AVX2 streamed rows a multiple of 2 KiB long
+/// Short contiguous rows (fewer than [`SIMD_MIN_SAMPLES`] samples, on
+/// AVX-512 CPUs [`FLAT_AVX512_MAX_SAMPLES`]; no residuals), and on AVX2
+/// streamed rows a multiple of 2 KiB long
 /// ([`aliased_rows`]), through the flat vector kernel ([`flat`]): the rows
 /// are one flat sequence of tracks. `None` when it does not apply (the row kernels
 /// run instead). Bit-identical to them.
@@ -2020,7 +2045,8 @@ fn ab_flat_batch<T: IoFloat>(
     if !simd::fits::<T>(0, 32)
         || z.m != 1
         || n == 0
-        || (n >= SIMD_MIN_SAMPLES && !(kind == FlatKernel::Avx2 && nt && aliased_rows::<T>(n)))
+        || (n >= flat_max_samples::<T>(kind)
+            && !(kind == FlatKernel::Avx2 && nt && aliased_rows::<T>(n)))
         || !rows_ok
         || states.len() != nt_
         || out.len() != 2 * total

@@ -863,11 +863,14 @@ fn flat_kernel_cases(k: Kernel) {
     mixed.extend([1000, 0, 2, 257]);
     // Fewer long tracks than slots: most blocks run with idle slots.
     let few = vec![3000, 17, 2000, 5000, 1];
-    // Rows of 100 (every slot's boundaries in the same blocks), of 15 and
-    // 16 (two-point starts across a block boundary), of 2 and 1.
-    let cases: [Vec<usize>; 8] = [
+    // Rows of 100 and 300 (every slot's boundaries in the same blocks;
+    // AVX-512 CPUs run rectangular rows of up to 511 / 4,095 samples in the
+    // flat kernel), of 15 and 16 (two-point starts across a block
+    // boundary), of 2 and 1.
+    let cases: [Vec<usize>; 9] = [
         mixed,
         vec![100; 300],
+        vec![300; 40],
         vec![15; 200],
         vec![16; 200],
         vec![2; 300],
