@@ -654,12 +654,13 @@ const SIMD_MIN_SAMPLES: usize = 256;
 /// On AVX-512 CPUs, contiguous rows shorter than this (`[f32, f64]`) run
 /// in the flat kernel rather than the row lanes (from `SIMD_MIN_SAMPLES`
 /// up; shorter ones as before). On an Intel Xeon, 10^7 samples from memory,
-/// ns per sample, row lanes -> flat kernel: `f64` rows of 256 2.0 -> 1.3,
-/// 300 2.5 -> 1.3, 400 1.5-1.6 -> 1.3 (600 1.13-1.15 -> 1.17-1.28: not
-/// taken); `f32` 256 1.4 -> 0.75, 300 1.8-2.2 -> 0.73, 400 0.82-1.0 ->
-/// 0.59, 600 0.73-0.80 -> 0.58-0.62, 1,000 0.67 -> 0.63, 2,000 0.56 ->
-/// 0.51, 3,000 0.63 -> 0.60 (10,000 the same; docs/benchmarks.md, session
-/// 24).
+/// ns per sample, row lanes -> flat kernel (two runs): `f64` rows of 256
+/// 2.0 -> 1.3-1.4, 300 2.5-2.6 -> 1.3-1.4, 400 1.5-1.6 -> 1.3, 500 1.4 ->
+/// 1.1 (600 1.13-1.15 -> 1.17-1.28: not taken); `f32` 256 1.4-1.5 ->
+/// 0.75-0.84, 300 2.2-2.4 -> 0.73-0.80, 400 0.82-1.0 -> 0.59-0.62, 600
+/// 0.73-0.80 -> 0.58-0.62, 1,000 0.67-0.77 -> 0.63-0.67, 2,000 0.56 ->
+/// 0.51, 3,000 0.63-0.73 -> 0.60-0.70 (10,000 the same; docs/benchmarks.md,
+/// session 24).
 #[cfg(target_arch = "x86_64")]
 const FLAT_AVX512_MAX_SAMPLES: [usize; 2] = [4096, 512];
 
