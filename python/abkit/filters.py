@@ -878,7 +878,9 @@ class AlphaBetaFilter(FixedGainFilter):
         ``0.3 / alpha`` float32 epsilons of the data's scale, plus up to
         ``G / 2`` after a run of ``G`` missed samples
         (``docs/filtering.md``), in exchange for up to twice the throughput
-        on batches of many long tracks. Results stay bit-identical across
+        on batches of many tracks on CPUs without AVX-512 (with AVX-512 the
+        default kernels are about as fast; rows shorter than about 50
+        samples run slower in this mode). Results stay bit-identical across
         thread counts, chunked streaming (``state=``) and batch layouts,
         except that a long single track is split into segments as in the
         default kernels (then within float32 rounding of the unsplit run).
