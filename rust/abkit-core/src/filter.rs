@@ -2079,19 +2079,8 @@ fn ab_flat_batch<T: IoFloat>(
         None => false,
     };
     let (xs, vs) = out.split_at_mut(total);
-    // Chunks of whole tracks (the unit of parallel work); results do not
-    // depend on the chunking.
-    let threads = if parallel {
-        rayon::current_num_threads()
-    } else {
-        1
-    };
-    let per = if threads > 1 {
-        nt_.div_ceil(4 * threads).max((1usize << 18).div_ceil(n))
-    } else {
-        nt_
-    }
-    .max(1);
+    // Results do not depend on the chunking.
+    let per = row_chunk_tracks(nt_, n, parallel, 1);
     let shared = params.len() == 1;
     let run = |j0: usize, st: &mut [TrackState], xs: &mut [T], vs: &mut [T]| -> Result<()> {
         let cn = st.len();
@@ -2164,11 +2153,47 @@ fn ab_flat_batch<T: IoFloat>(
         }
         Ok(())
     };
-    let mut jobs = Vec::with_capacity(nt_.div_ceil(per));
+    Some(run_row_chunks(states, xs, vs, n, per, run))
+}
+
+/// Tracks per chunk (the unit of parallel work) of a batch of `n_tracks`
+/// rows of `n` samples: all of them unless `parallel` with several threads
+/// in rayon's pool, then about four chunks per thread of at least 2^18
+/// samples each, rounded up to a multiple of `group` tracks.
+fn row_chunk_tracks(n_tracks: usize, n: usize, parallel: bool, group: usize) -> usize {
+    let threads = if parallel {
+        rayon::current_num_threads()
+    } else {
+        1
+    };
+    if threads > 1 {
+        n_tracks
+            .div_ceil(4 * threads)
+            .max((1usize << 18).div_ceil(n.max(1)))
+            .next_multiple_of(group.max(1))
+    } else {
+        n_tracks
+    }
+    .max(1)
+}
+
+/// `run(j0, states, xs, vs)` on chunks of `per` whole tracks `j0..` (rows
+/// of `n` samples back to back in `xs` and `vs`), on rayon's pool when
+/// there are several chunks; the first error in track order.
+fn run_row_chunks<T: Send>(
+    states: &mut [TrackState],
+    xs: &mut [T],
+    vs: &mut [T],
+    n: usize,
+    per: usize,
+    run: impl Fn(usize, &mut [TrackState], &mut [T], &mut [T]) -> Result<()> + Sync,
+) -> Result<()> {
+    let n_tracks = states.len();
+    let mut jobs = Vec::with_capacity(n_tracks.div_ceil(per.max(1)));
     let (mut st_rest, mut x_rest, mut v_rest) = (states, xs, vs);
     let mut j0 = 0;
-    while j0 < nt_ {
-        let cn = per.min(nt_ - j0);
+    while j0 < n_tracks {
+        let cn = per.max(1).min(n_tracks - j0);
         let (a, b) = std::mem::take(&mut st_rest).split_at_mut(cn);
         let (xa, xb) = std::mem::take(&mut x_rest).split_at_mut(cn * n);
         let (va, vb) = std::mem::take(&mut v_rest).split_at_mut(cn * n);
@@ -2185,7 +2210,7 @@ fn ab_flat_batch<T: IoFloat>(
             .map(|(j0, st, x, v)| run(j0, st, x, v))
             .collect()
     };
-    Some(res.into_iter().collect())
+    res.into_iter().collect()
 }
 
 /// Rows of `n` samples a multiple of 2 KiB long (`f64`: `n` a multiple

@@ -576,49 +576,16 @@ fn short_batch(
     }
     let zs = z.data.get(z.base..z.base.checked_add(total)?)?;
     let (xs, vs) = out.split_at_mut(total);
-    let threads = if parallel {
-        rayon::current_num_threads()
-    } else {
-        1
-    };
     // Chunks of whole tracks (the unit of parallel work), in whole groups.
-    let per = if threads > 1 {
-        n_tracks
-            .div_ceil(4 * threads)
-            .max((1usize << 18).div_ceil(n))
-            .next_multiple_of(LANES)
-    } else {
-        n_tracks
-    }
-    .max(1);
+    let per = super::row_chunk_tracks(n_tracks, n, parallel, LANES);
     let run = |j0: usize, st: &mut [TrackState], xs: &mut [f32], vs: &mut [f32]| {
         let zc = &zs[j0 * n..(j0 + st.len()) * n];
         // SAFETY: AVX2 and FMA (checked above); the chunk's rows and
         // outputs hold st.len() rows of n samples.
-        unsafe { short_rows(params, j0, init, n, zc, st, xs, vs, nt) }
+        unsafe { short_rows(params, j0, init, n, zc, st, xs, vs, nt) };
+        Ok(())
     };
-    let mut jobs = Vec::with_capacity(n_tracks.div_ceil(per));
-    let (mut st_rest, mut x_rest, mut v_rest) = (states, xs, vs);
-    let mut j0 = 0;
-    while j0 < n_tracks {
-        let cn = per.min(n_tracks - j0);
-        let (a, b) = std::mem::take(&mut st_rest).split_at_mut(cn);
-        let (xa, xb) = std::mem::take(&mut x_rest).split_at_mut(cn * n);
-        let (va, vb) = std::mem::take(&mut v_rest).split_at_mut(cn * n);
-        jobs.push((j0, a, xa, va));
-        (st_rest, x_rest, v_rest) = (b, xb, vb);
-        j0 += cn;
-    }
-    if jobs.len() > 1 {
-        use rayon::prelude::*;
-        jobs.into_par_iter()
-            .for_each(|(j0, st, x, v)| run(j0, st, x, v));
-    } else {
-        for (j0, st, x, v) in jobs {
-            run(j0, st, x, v);
-        }
-    }
-    Some(Ok(()))
+    Some(super::run_row_chunks(states, xs, vs, n, per, run))
 }
 
 /// One chunk of [`short_batch`]: tracks `j0..j0 + st.len()`, rows of `n`
@@ -859,6 +826,30 @@ mod avx2 {
         r[7] = _mm256_permute2f128_ps::<0x31>(s3, s7);
     }
 
+    /// The 16 values of `a` in two registers (lanes 0..8 and 8..16).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn load16(a: &[f32; LANES]) -> [__m256; 2] {
+        // SAFETY: `a` holds 16 f32.
+        unsafe {
+            [
+                _mm256_loadu_ps(a.as_ptr()),
+                _mm256_loadu_ps(a.as_ptr().add(8)),
+            ]
+        }
+    }
+
+    /// [`load16`]'s inverse.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn store16(a: &mut [f32; LANES], r: [__m256; 2]) {
+        // SAFETY: `a` holds 16 f32.
+        unsafe {
+            _mm256_storeu_ps(a.as_mut_ptr(), r[0]);
+            _mm256_storeu_ps(a.as_mut_ptr().add(8), r[1]);
+        }
+    }
+
     /// One register's constants.
     #[derive(Clone, Copy)]
     struct K {
@@ -927,18 +918,10 @@ mod avx2 {
         let k0 = konsts(c, 0);
         let k1 = konsts(c, 1);
         let one = _mm256_set1_ps(1.0);
-        // SAFETY (loads and stores of x, v and the column arrays): 16 f32
-        // each.
-        let (mut x0, mut x1, mut v0, mut v1) = unsafe {
-            (
-                _mm256_loadu_ps(x.as_ptr()),
-                _mm256_loadu_ps(x.as_ptr().add(8)),
-                _mm256_loadu_ps(v.as_ptr()),
-                _mm256_loadu_ps(v.as_ptr().add(8)),
-            )
-        };
+        let [mut x0, mut x1] = load16(x);
+        let [mut v0, mut v1] = load16(v);
         let mut zc = [0f32; LANES];
-        let mut act = [0u32; LANES];
+        let mut act = [0f32; LANES];
         let mut ox = [0f32; LANES];
         let mut ov = [0f32; LANES];
         for s in 0..most {
@@ -947,25 +930,20 @@ mod avx2 {
                 let on = k < to[l];
                 // SAFETY: k < to[l] (the caller's contract).
                 zc[l] = if on { unsafe { *z[l].add(k) } } else { 0.0 };
-                act[l] = if on { u32::MAX } else { 0 };
+                // All bits set: the lane steps (blendv reads the sign).
+                act[l] = f32::from_bits(if on { u32::MAX } else { 0 });
             }
-            unsafe {
-                let za = _mm256_loadu_ps(zc.as_ptr());
-                let zb = _mm256_loadu_ps(zc.as_ptr().add(8));
-                let ma = _mm256_loadu_ps(act.as_ptr() as *const f32);
-                let mb = _mm256_loadu_ps(act.as_ptr().add(8) as *const f32);
-                let (mut xa, mut va, mut xb, mut vb) = (x0, v0, x1, v1);
-                masked(&k0, one, &mut xa, &mut va, za);
-                masked(&k1, one, &mut xb, &mut vb, zb);
-                x0 = _mm256_blendv_ps(x0, xa, ma);
-                v0 = _mm256_blendv_ps(v0, va, ma);
-                x1 = _mm256_blendv_ps(x1, xb, mb);
-                v1 = _mm256_blendv_ps(v1, vb, mb);
-                _mm256_storeu_ps(ox.as_mut_ptr(), x0);
-                _mm256_storeu_ps(ox.as_mut_ptr().add(8), x1);
-                _mm256_storeu_ps(ov.as_mut_ptr(), v0);
-                _mm256_storeu_ps(ov.as_mut_ptr().add(8), v1);
-            }
+            let [za, zb] = load16(&zc);
+            let [ma, mb] = load16(&act);
+            let (mut xa, mut va, mut xb, mut vb) = (x0, v0, x1, v1);
+            masked(&k0, one, &mut xa, &mut va, za);
+            masked(&k1, one, &mut xb, &mut vb, zb);
+            x0 = _mm256_blendv_ps(x0, xa, ma);
+            v0 = _mm256_blendv_ps(v0, va, ma);
+            x1 = _mm256_blendv_ps(x1, xb, mb);
+            v1 = _mm256_blendv_ps(v1, vb, mb);
+            store16(&mut ox, [x0, x1]);
+            store16(&mut ov, [v0, v1]);
             for l in 0..LANES {
                 let k = from[l] + s;
                 if k < to[l] {
@@ -977,12 +955,8 @@ mod avx2 {
                 }
             }
         }
-        unsafe {
-            _mm256_storeu_ps(x.as_mut_ptr(), x0);
-            _mm256_storeu_ps(x.as_mut_ptr().add(8), x1);
-            _mm256_storeu_ps(v.as_mut_ptr(), v0);
-            _mm256_storeu_ps(v.as_mut_ptr().add(8), v1);
-        }
+        store16(x, [x0, x1]);
+        store16(v, [v0, v1]);
     }
 
     /// Register `g`'s constants (lanes `8 g .. 8 g + 8`).
@@ -1030,15 +1004,8 @@ mod avx2 {
     ) {
         let (k0, k1) = (konsts(c, 0), konsts(c, 1));
         let one = _mm256_set1_ps(1.0);
-        // SAFETY: x and v hold 16 f32 each.
-        let (mut x0, mut x1, mut v0, mut v1) = unsafe {
-            (
-                _mm256_loadu_ps(x.as_ptr()),
-                _mm256_loadu_ps(x.as_ptr().add(8)),
-                _mm256_loadu_ps(v.as_ptr()),
-                _mm256_loadu_ps(v.as_ptr().add(8)),
-            )
-        };
+        let [mut x0, mut x1] = load16(x);
+        let [mut v0, mut v1] = load16(v);
         // Column stages: [register][step] -> the 8 slots.
         let mut sz = [[_mm256_setzero_ps(); BLOCK]; 2];
         let mut sx = [[_mm256_setzero_ps(); BLOCK]; 2];
@@ -1110,13 +1077,8 @@ mod avx2 {
                 }
             }
         }
-        // SAFETY: x and v hold 16 f32 each.
-        unsafe {
-            _mm256_storeu_ps(x.as_mut_ptr(), x0);
-            _mm256_storeu_ps(x.as_mut_ptr().add(8), x1);
-            _mm256_storeu_ps(v.as_mut_ptr(), v0);
-            _mm256_storeu_ps(v.as_mut_ptr().add(8), v1);
-        }
+        store16(x, [x0, x1]);
+        store16(v, [v0, v1]);
     }
 }
 
