@@ -32,9 +32,10 @@
 //!   roots and divisions per step, bound by the divider.)
 //!
 //! The vector code runs only on CPUs with AVX2 + FMA (4 lanes; AVX-512F +
-//! FMA, 8 lanes, only with `ABKIT_TRACKS_AVX512=1`: not yet run on an
-//! AVX-512 machine), and not when `ABKIT_DISABLE_SIMD` is set (to anything
-//! but `0`, before the first call); the scalar lanes run otherwise.
+//! FMA, 8 lanes, only with `ABKIT_TRACKS_AVX512=1`: bit-identical on an
+//! AVX-512 Xeon, but slower there than the 4 lanes, see [`width`]), and
+//! not when `ABKIT_DISABLE_SIMD` is set (to anything but `0`, before the
+//! first call); the scalar lanes run otherwise.
 #![allow(clippy::too_many_arguments)]
 
 use crate::filter::IoFloat;
@@ -48,10 +49,14 @@ fn disabled() -> bool {
 
 /// Lanes of the vector kernel on this CPU: 4 (AVX2 + FMA), 8 (AVX-512F +
 /// FMA, **opt-in**: the environment variable `ABKIT_TRACKS_AVX512` set to
-/// anything but `0`, until the 8-lane build has been verified on an
-/// AVX-512 machine; it shares the generic kernel with the 4-lane one, only
+/// anything but `0`; it shares the generic kernel with the 4-lane one, only
 /// the vector type differs) or 0 (no vector kernel; also with
-/// `ABKIT_DISABLE_SIMD`). Checked once.
+/// `ABKIT_DISABLE_SIMD`). Checked once. The 8 lanes give the same bits
+/// (tests/test_tracks_lanes.py runs them in a child process) but were
+/// slower on the AVX-512 Xeon this was measured on (`bench/bench_tracks.py
+/// --threads 1 --cpu`, 4 -> 8 lanes: 1,000 x 10,000 with `t`, design
+/// schedule 556 -> 448 Msamples/s, fixed-gain 563 -> 469; ragged with `t`
+/// 479 -> 390; docs/benchmarks.md, session 25), so 4 stays the default.
 pub fn width() -> usize {
     use std::sync::OnceLock;
     static W: OnceLock<usize> = OnceLock::new();
