@@ -40,6 +40,7 @@ __all__ = [
     "STATE_WIDTH",
     "MAX_STATES",
     "filter_tracks",
+    "filter_tracks_f32",
     "filter_feed",
     "time_order",
     "__version__",
@@ -153,6 +154,16 @@ def filter_tracks(
     smoother_params: _F64 | None = None,
     lag: int | None = None,
 ) -> bool: ...  # whether some started track's final state is not finite
+def filter_tracks_f32(
+    z: npt.NDArray[np.float32],
+    offsets: npt.NDArray[np.int64],
+    params: _F64,
+    init: str,
+    state: _F64,
+    out: npt.NDArray[np.float32],
+    resid: npt.NDArray[np.float32] | None = None,
+    threads: int | None = None,
+) -> bool: ...  # float32 arithmetic, alpha-beta, no timestamps
 def kalman_gain_sequence(
     n: int, m: int, phi: _F64, h: _F64, q: _F64, r: _F64, p0: _F64, steps: int
 ) -> tuple[_F64, _F64, _F64]: ...

@@ -262,12 +262,21 @@ def run_tracks(
     out2 = o.reshape(f.n, n_total)
     res2 = np.empty((n_total, m), dtype=z3.dtype) if return_residuals else None
     counts = np.zeros((n_tracks, 2), dtype=np.int64)
-    suspect = _abkit.filter_tracks(
-        z3, t2, off, f.n, m, law, np.ascontiguousarray(params, dtype=np.float64).reshape(-1),
-        np.ascontiguousarray(f._h[0]).reshape(-1), np.ascontiguousarray(f._hpinv[0]).reshape(-1),
-        float(tn[0]), init_mode, gap, drop, packed, out2, counts, res2,
-        None if threads is None else int(threads), smoother, smoother_params, lag,
-    )
+    if getattr(f, "float32_arithmetic", False) and z3.dtype == np.float32:
+        # AlphaBetaFilter(float32_arithmetic=True): without timestamps,
+        # restarts, drops or smoothing (the callers raise for those).
+        if t is not None or gap is not None or drop or smoother is not None:
+            f._no_float32("t, max_gap, on_duplicate or smoothing")
+        suspect = _abkit.filter_tracks_f32(
+            z3, off, f._params, init_mode, packed, out2, res2, None if threads is None else int(threads)
+        )
+    else:
+        suspect = _abkit.filter_tracks(
+            z3, t2, off, f.n, m, law, np.ascontiguousarray(params, dtype=np.float64).reshape(-1),
+            np.ascontiguousarray(f._h[0]).reshape(-1), np.ascontiguousarray(f._hpinv[0]).reshape(-1),
+            float(tn[0]), init_mode, gap, drop, packed, out2, counts, res2,
+            None if threads is None else int(threads), smoother, smoother_params, lag,
+        )
     if gap is None and suspect:
         # Some started track's final state is not finite (the kernel's
         # check, O(n_tracks) in Rust): find the Inf or the overflow.

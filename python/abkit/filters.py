@@ -623,8 +623,12 @@ class FixedGainFilter:
         if t is not None or offsets is not None or axes is not None or max_gap is not None or on_duplicate != "raise":
             if self._transient is not None:
                 raise ValueError("transient='kalman' does not support t, offsets, axes, max_gap or on_duplicate")
-            if getattr(self, "float32_arithmetic", False) and getattr(z, "dtype", None) == np.float32:
-                self._no_float32("run with t, offsets, axes, max_gap or on_duplicate")
+            if (
+                getattr(self, "float32_arithmetic", False)
+                and getattr(z, "dtype", None) == np.float32
+                and (t is not None or max_gap is not None or on_duplicate != "raise")
+            ):
+                self._no_float32("run with t, max_gap or on_duplicate")
             from . import _tracks
 
             kw = dict(t=t, offsets=offsets, max_gap=max_gap, on_duplicate=on_duplicate, init=init, state=state, out=out, return_residuals=return_residuals, threads=threads)
@@ -884,10 +888,11 @@ class AlphaBetaFilter(FixedGainFilter):
         thread counts, chunked streaming (``state=``) and batch layouts,
         except that a long single track is split into segments as in the
         default kernels (then within float32 rounding of the unsplit run).
-        Available for :meth:`run` on regular batches (not with ``t``,
-        ``offsets``, ``axes``, ``max_gap``, ``on_duplicate``, nor for
-        :meth:`smooth`, ``transient`` or :class:`abkit.FeedTracker`): those
-        raise a ValueError on float32 data.
+        Available for :meth:`run` on regular batches and with ``offsets``
+        and ``axes`` (ragged batches: each track gives the bits of that
+        track run alone), not with ``t``, ``max_gap``, ``on_duplicate``, nor
+        for :meth:`smooth`, ``transient`` or :class:`abkit.FeedTracker`:
+        those raise a ValueError on float32 data.
 
     Examples
     --------

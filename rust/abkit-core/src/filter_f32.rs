@@ -744,6 +744,23 @@ fn group_dispatch(
     }
 }
 
+/// The constants must be float32 numbers (a period beyond float32's range
+/// would round to infinity or zero: silently meaningless output).
+fn check_f32(params: &[(f64, f64, f64)]) -> Result<()> {
+    for &(a, b, t) in params {
+        let c = C32::new(a, b, t);
+        if !(c.t.is_finite() && c.t > 0.0) {
+            return Err(crate::Error::domain("T", "finite and > 0 in float32", t));
+        }
+        for (name, v, w) in [("alpha", a, c.alpha), ("beta / T", b / t, c.g2)] {
+            if !(w.is_finite() && c.c1.is_finite()) {
+                return Err(crate::Error::domain(name, "finite in float32", v));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Filter a batch of `f32` measurements with alpha-beta filters in `f32`
 /// arithmetic (`params[i] = (alpha, beta, T)`, one for all tracks or one
 /// per track). Same arguments and layout as [`super::filter_ab`] (no
@@ -758,19 +775,7 @@ pub fn filter_ab_f32(
     parallel: bool,
 ) -> Result<()> {
     super::check_ab(params, z)?;
-    // The constants must be float32 numbers (a period beyond float32's range
-    // would round to infinity or zero: silently meaningless output).
-    for &(a, b, t) in params {
-        let c = C32::new(a, b, t);
-        if !(c.t.is_finite() && c.t > 0.0) {
-            return Err(crate::Error::domain("T", "finite and > 0 in float32", t));
-        }
-        for (name, v, w) in [("alpha", a, c.alpha), ("beta / T", b / t, c.g2)] {
-            if !(w.is_finite() && c.c1.is_finite()) {
-                return Err(crate::Error::domain(name, "finite in float32", v));
-            }
-        }
-    }
+    check_f32(params)?;
     let nt = super::streamed::<f32>(2 * z.n_tracks * z.n_samples * 4, true);
     #[cfg(target_arch = "x86_64")]
     if resid.is_none() {
@@ -789,6 +794,331 @@ pub fn filter_ab_f32(
         LANES,
         |jobs| group_dispatch(params, init, z, jobs, nt),
     )
+}
+
+/// Samples of a block of consecutive tracks of [`filter_ab_f32_tracks`]
+/// (at least; the unit of parallel work, and the tracks a block sorts by
+/// length into groups of [`LANES`]).
+const TRACKS_BLOCK_SAMPLES: usize = 1 << 20;
+
+/// A ragged batch of `f32` tracks in `f32` arithmetic (the Arrow list
+/// layout of [`crate::ragged`], no timestamps): track `i` is flat samples
+/// `offsets[i]..offsets[i + 1]` of `z`, its outputs the same samples of the
+/// rows `x = out[..N]`, `v = out[N..]` (and of `resid`). Each track gives
+/// the bits of that track alone through [`filter_ab_f32`] (start-up, then
+/// a long running track split as there, otherwise the steady loop), so the
+/// result does not depend on the other tracks, the blocking or the thread
+/// count. Tracks in blocks of consecutive tracks (about
+/// [`TRACKS_BLOCK_SAMPLES`] samples) on rayon's pool; within a block the
+/// running tracks that are not split go through the AVX2 row lanes
+/// ([`lanes_fma`], bit-identical to the loop) [`LANES`] at a time, sorted
+/// by length so that a group's lanes end close together; the shortest
+/// (fewer than [`LANES`] left over) and all tracks with residuals or
+/// strided `z` run the scalar loop.
+#[allow(clippy::too_many_arguments)]
+pub fn filter_ab_f32_tracks(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    offsets: &[i64],
+    z: &crate::ragged::Samples<'_, f32>,
+    states: &mut [TrackState],
+    out: &mut [f32],
+    resid: Option<&mut [f32]>,
+    parallel: bool,
+) -> Result<()> {
+    use crate::Error;
+    use rayon::prelude::*;
+    let n_total = z.len();
+    if z.m != 1 {
+        return Err(Error::Shape(format!(
+            "alpha-beta needs scalar measurements, got {}",
+            z.m
+        )));
+    }
+    z.validate("measurement")?;
+    let off = crate::ragged::check_offsets(offsets, n_total, z.row_len, z.n_rows)?;
+    let n_tracks = off.len() - 1;
+    if states.len() != n_tracks {
+        return Err(Error::Shape(format!(
+            "{} states for {n_tracks} tracks",
+            states.len()
+        )));
+    }
+    if !(params.len() == 1 || params.len() == n_tracks) {
+        return Err(Error::Shape(format!(
+            "{} parameter sets for {n_tracks} tracks",
+            params.len()
+        )));
+    }
+    for &(a, b, t) in params {
+        for (name, v) in [("alpha", a), ("beta", b)] {
+            if !v.is_finite() {
+                return Err(Error::domain(name, "finite", v));
+            }
+        }
+        if !(t.is_finite() && t > 0.0) {
+            return Err(Error::domain("T", "finite and > 0", t));
+        }
+    }
+    check_f32(params)?;
+    if out.len() != 2 * n_total || resid.as_ref().is_some_and(|r| r.len() != n_total) {
+        return Err(Error::Shape(format!(
+            "outputs of {} / residuals of {:?} elements for {n_total} samples",
+            out.len(),
+            resid.as_ref().map(|r| r.len())
+        )));
+    }
+    if n_total == 0 {
+        return Ok(());
+    }
+    let flat = (z.s_sample == 1 && (z.n_rows <= 1 || z.s_row == z.row_len as isize))
+        .then(|| z.data.get(z.base..z.base + n_total))
+        .flatten();
+    let zs = ZSource { z, flat };
+    let nt = super::streamed::<f32>(2 * n_total * 4, true);
+    let (xs, vs) = out.split_at_mut(n_total);
+    let threads = if parallel {
+        rayon::current_num_threads()
+    } else {
+        1
+    };
+    let target = (n_total / (4 * threads)).max(TRACKS_BLOCK_SAMPLES);
+    type Blk<'b> = (
+        usize,
+        usize,
+        &'b mut [TrackState],
+        &'b mut [f32],
+        &'b mut [f32],
+        Option<&'b mut [f32]>,
+    );
+    let mut blocks: Vec<Blk<'_>> = Vec::new();
+    let (mut st_rest, mut x_rest, mut v_rest, mut r_rest) = (states, xs, vs, resid);
+    let mut j0 = 0;
+    while j0 < n_tracks {
+        let mut j1 = j0 + 1;
+        while j1 < n_tracks && off[j1] - off[j0] < target {
+            j1 += 1;
+        }
+        let len = off[j1] - off[j0];
+        let (a, b) = std::mem::take(&mut st_rest).split_at_mut(j1 - j0);
+        let (xa, xb) = std::mem::take(&mut x_rest).split_at_mut(len);
+        let (va, vb) = std::mem::take(&mut v_rest).split_at_mut(len);
+        let (ra, rb) = match r_rest.take() {
+            Some(r) => {
+                let (ra, rb) = r.split_at_mut(len);
+                (Some(ra), Some(rb))
+            }
+            None => (None, None),
+        };
+        blocks.push((j0, j1, a, xa, va, ra));
+        (st_rest, x_rest, v_rest, r_rest) = (b, xb, vb, rb);
+        j0 = j1;
+    }
+    let run = |(j0, j1, st, xs, vs, rs): Blk<'_>| {
+        tracks_block_dispatch(params, init, &off[j0..=j1], j0, &zs, st, xs, vs, rs, nt);
+    };
+    if parallel && blocks.len() > 1 {
+        blocks.into_par_iter().for_each(run);
+    } else {
+        blocks.into_iter().for_each(run);
+    }
+    Ok(())
+}
+
+/// The measurements of [`filter_ab_f32_tracks`]: any strides, and the flat
+/// samples as one slice where they are contiguous.
+struct ZSource<'a, 'z> {
+    z: &'a crate::ragged::Samples<'z, f32>,
+    flat: Option<&'z [f32]>,
+}
+
+impl ZSource<'_, '_> {
+    /// Flat sample `g`.
+    #[inline(always)]
+    fn at(&self, g: usize) -> f32 {
+        self.z.data[self.z.addr(g) as usize]
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn tracks_block_dispatch(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    off: &[usize],
+    j0: usize,
+    z: &ZSource<'_, '_>,
+    st: &mut [TrackState],
+    xs: &mut [f32],
+    vs: &mut [f32],
+    rs: Option<&mut [f32]>,
+    nt: bool,
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if super::uses_fma() {
+            // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
+            unsafe { tracks_block_fma(params, init, off, j0, z, st, xs, vs, rs, nt) };
+            return;
+        }
+        tracks_block::<false>(params, init, off, j0, z, st, xs, vs, rs, nt)
+    }
+    #[cfg(target_arch = "aarch64")]
+    {
+        tracks_block::<true>(params, init, off, j0, z, st, xs, vs, rs, nt)
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        tracks_block::<false>(params, init, off, j0, z, st, xs, vs, rs, nt)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "fma")]
+fn tracks_block_fma(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    off: &[usize],
+    j0: usize,
+    z: &ZSource<'_, '_>,
+    st: &mut [TrackState],
+    xs: &mut [f32],
+    vs: &mut [f32],
+    rs: Option<&mut [f32]>,
+    nt: bool,
+) {
+    tracks_block::<true>(params, init, off, j0, z, st, xs, vs, rs, nt)
+}
+
+/// One block of [`filter_ab_f32_tracks`]: tracks `j0..j0 + st.len()`,
+/// `off` their offsets (global sample indices, `st.len() + 1` of them),
+/// `xs`, `vs`, `rs` the block's samples of the outputs. Each track as
+/// [`group`] runs a group of one: the start-up, then (with FMA, AVX2, no
+/// residuals and a contiguous row) the split of a long run, else the loop;
+/// the loop's tracks go [`LANES`] at a time through [`lanes_fma`] (the
+/// same operations).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn tracks_block<const FMA: bool>(
+    params: &[(f64, f64, f64)],
+    init: Init,
+    off: &[usize],
+    j0: usize,
+    z: &ZSource<'_, '_>,
+    st: &mut [TrackState],
+    xs: &mut [f32],
+    vs: &mut [f32],
+    rs: Option<&mut [f32]>,
+    nt: bool,
+) {
+    let pick = |i: usize| params[if params.len() == 1 { 0 } else { i }];
+    let konst = |i: usize| {
+        let (a, b, t) = pick(i);
+        C32::new(a, b, t)
+    };
+    // Per-track output slices, taken out as each track needs them.
+    fn per_track<'s>(mut rest: &'s mut [f32], off: &[usize]) -> Vec<&'s mut [f32]> {
+        off.windows(2)
+            .map(|w| {
+                let (a, b) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
+                rest = b;
+                a
+            })
+            .collect()
+    }
+    let mut xt = per_track(xs, off);
+    let mut vt = per_track(vs, off);
+    let mut rt = rs.map(|r| per_track(r, off));
+    // Tracks for the vector lanes: (index in the block, steady start).
+    let mut lanes: Vec<(usize, usize)> = Vec::new();
+    #[cfg(target_arch = "x86_64")]
+    let vector = FMA && super::simd::avx2_available() && rt.is_none() && z.flat.is_some();
+    #[cfg(not(target_arch = "x86_64"))]
+    let vector = false;
+    for (j, s) in st.iter_mut().enumerate() {
+        let i = j0 + j;
+        let (g0, len) = (off[j], off[j + 1] - off[j]);
+        let c = konst(i);
+        let mut o = TrackOut {
+            states: [std::mem::take(&mut xt[j]), std::mem::take(&mut vt[j])],
+            resid: rt.as_mut().map(|r| std::mem::take(&mut r[j])),
+        };
+        let row = z.flat.map(|f| &f[g0..g0 + len]);
+        let k0 = match row {
+            Some(r) => start(&c, init, s, len, &|k| r[k], &mut o),
+            None => start(&c, init, s, len, &|k| z.at(g0 + k), &mut o),
+        };
+        if s.phase < 2.0 || k0 >= len {
+            continue;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if vector {
+            if let Some(r) = row {
+                let (a, b, _) = pick(i);
+                if let Some(ls) = super::split_seg_len(a, b, len - k0) {
+                    let nt1 = super::streamed::<f32>(2 * len * 4, true);
+                    // SAFETY: AVX2 and FMA (`vector`); the row and outputs
+                    // have len >= k0 + LANES * ls samples (the plan's
+                    // segments).
+                    unsafe { split_fma(&c, s, k0, ls, r, &mut o, nt1) };
+                } else {
+                    let [x, v] = o.states;
+                    (xt[j], vt[j]) = (x, v);
+                    lanes.push((j, k0));
+                }
+                continue;
+            }
+        }
+        match row {
+            Some(r) => run_loop::<FMA>(&c, s, k0, len, |k| r[k], &mut o),
+            None => run_loop::<FMA>(&c, s, k0, len, |k| z.at(g0 + k), &mut o),
+        }
+    }
+    let _ = nt;
+    #[cfg(target_arch = "x86_64")]
+    if let (true, Some(flat)) = (vector, z.flat) {
+        // Longest first: groups of similar lengths, the few left over the
+        // shortest.
+        let run_len = |&(j, k0): &(usize, usize)| off[j + 1] - off[j] - k0;
+        lanes.sort_by_key(|e| std::cmp::Reverse(run_len(e)));
+        let full = lanes.len() / LANES * LANES;
+        for grp in lanes[..full].chunks_exact(LANES) {
+            let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
+            let mut x = [0f32; LANES];
+            let mut v = [0f32; LANES];
+            let mut k0 = [0usize; LANES];
+            let mut rows: [&[f32]; LANES] = [&[]; LANES];
+            let mut xl: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
+            let mut vl: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
+            for (l, &(j, k)) in grp.iter().enumerate() {
+                c[l] = konst(j0 + j);
+                x[l] = st[j].x[0] as f32;
+                v[l] = st[j].x[1] as f32;
+                k0[l] = k;
+                rows[l] = &flat[off[j]..off[j + 1]];
+                xl[l] = std::mem::take(&mut xt[j]);
+                vl[l] = std::mem::take(&mut vt[j]);
+            }
+            // SAFETY: AVX2 and FMA (`vector`).
+            unsafe { lanes_fma(&c, &mut x, &mut v, &k0, rows, xl, vl, nt, 0) };
+            for (l, &(j, _)) in grp.iter().enumerate() {
+                st[j].x[0] = x[l] as f64;
+                st[j].x[1] = v[l] as f64;
+            }
+        }
+        for &(j, k0) in &lanes[full..] {
+            let c = konst(j0 + j);
+            let r = &flat[off[j]..off[j + 1]];
+            let mut o = TrackOut {
+                states: [std::mem::take(&mut xt[j]), std::mem::take(&mut vt[j])],
+                resid: None,
+            };
+            run_loop::<FMA>(&c, &mut st[j], k0, r.len(), |k| r[k], &mut o);
+        }
+    }
+    // The lanes' and the split's streamed stores, before the outputs are
+    // read.
+    super::store_fence();
 }
 
 #[cfg(target_arch = "x86_64")]

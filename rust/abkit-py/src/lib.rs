@@ -70,7 +70,7 @@ mod _abkit {
     #[pymodule_export]
     use super::singer::{singer_model, singer_steady_state};
     #[pymodule_export]
-    use super::tracks::filter_tracks_py;
+    use super::tracks::{filter_tracks_f32_py, filter_tracks_py};
     use pyo3::prelude::*;
 
     #[pymodule_init]

@@ -8,6 +8,7 @@
 
 use crate::convert::{guard, to_pyerr};
 use crate::filter::{parse_init, with_threads};
+use abkit_core::filter::f32arith::filter_ab_f32_tracks;
 use abkit_core::filter::{states_from_f64, IoFloat};
 use abkit_core::irregular::{AbBackward, Kin3Backward};
 use abkit_core::irregular::{
@@ -18,7 +19,10 @@ use abkit_core::ragged::{
     TrackFilter,
 };
 use numpy::ndarray::{ArrayView2, ArrayView3};
-use numpy::{Element, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{
+    Element, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
+    PyReadonlyArray3,
+};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -503,4 +507,53 @@ pub(crate) fn filter_tracks_py<'py>(
             dispatch!(n, m, go)
         }
     }
+}
+
+/// Alpha-beta over a ragged `float32` batch in `float32` arithmetic (the
+/// `float32_arithmetic=True` route of `run(z, offsets=...)` without
+/// timestamps): `z` `(rows, row_len, 1)` float32 (any strides), `offsets`
+/// int64 `(n_tracks + 1,)`, `params` rows `(alpha, beta, T)`, `out` `(2, N)`
+/// float32, `resid` `(N, 1)`, `state` `(n_tracks, STATE_WIDTH)`. Returns
+/// whether some started track's final state is not finite.
+#[pyfunction]
+#[pyo3(name = "filter_tracks_f32", signature = (z, offsets, params, init, state, out, resid=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn filter_tracks_f32_py<'py>(
+    py: Python<'py>,
+    z: PyReadonlyArray3<'py, f32>,
+    offsets: PyReadonlyArray1<'py, i64>,
+    params: PyReadonlyArray2<'py, f64>,
+    init: &str,
+    state: Bound<'py, PyArray2<f64>>,
+    out: Bound<'py, PyArray2<f32>>,
+    resid: Option<Bound<'py, PyArray2<f32>>>,
+    threads: Option<usize>,
+) -> PyResult<bool> {
+    let init = parse_init(init)?;
+    let p: Vec<(f64, f64, f64)> = params
+        .as_slice()?
+        .chunks_exact(3)
+        .map(|r| (r[0], r[1], r[2]))
+        .collect();
+    let zv = z.as_array();
+    let zs = z_samples(&zv);
+    let offsets = offsets.as_slice()?;
+    let mut out_rw = out.readwrite();
+    let out = out_rw.as_slice_mut()?;
+    let mut resid_rw = resid.as_ref().map(|r| r.readwrite());
+    let resid = match resid_rw.as_mut() {
+        Some(r) => Some(r.as_slice_mut()?),
+        None => None,
+    };
+    let mut st_rw = state.readwrite();
+    let states = states_from_f64(st_rw.as_slice_mut()?).map_err(|e| to_pyerr((0, e)))?;
+    let res = py.detach(|| {
+        guard(|| {
+            with_threads(threads, |par| {
+                filter_ab_f32_tracks(&p, init, offsets, &zs, states, out, resid, par)
+                    .map(|()| crate::filter::not_finite(states, 2))
+            })
+        })
+    })??;
+    res.map_err(|e| to_pyerr((0, e)))
 }

@@ -426,3 +426,190 @@ fn f32_split_track_agrees_with_the_recursion() {
         }
     }
 }
+
+/// A ragged batch (`filter_ab_f32_tracks`) gives each track the bits of
+/// that track alone through `filter_ab_f32`, states included: mixed lengths
+/// (empty, one and two samples, rows too short for a block, a split track
+/// of 2 x 2^16 + samples: split in both calls), NaN starts and gaps, all-NaN tracks, shared and
+/// per-track gains, both inits, strided measurements, residuals, one
+/// thread or the pool, and a second call continuing the states.
+#[test]
+fn ragged_tracks_equal_each_track_alone() {
+    use crate::ragged::Samples;
+    let mut lens: Vec<usize> = vec![0, 1, 2, 3, 17, 15, 16, 31, 100, 333, 1000, 140_000, 0, 5];
+    let mut s = 7u64;
+    for _ in 0..200 {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        // log-uniform 10..4,000
+        lens.push((10.0 * 400f64.powf((s >> 11) as f64 / (1u64 << 53) as f64)) as usize);
+    }
+    let total: usize = lens.iter().sum();
+    let mut offsets = vec![0i64];
+    for &l in &lens {
+        offsets.push(offsets.last().copied().unwrap_or(0) + l as i64);
+    }
+    let n_tracks = lens.len();
+    let z = data(1, total, 3.0, |_, k| k % 97 == 5 || (k * 7) % 1009 < 3);
+    let mut z = z;
+    // An all-NaN track and a track starting late.
+    let (a3, b3) = (offsets[4] as usize, offsets[5] as usize);
+    z[a3..b3].fill(f32::NAN);
+    let a9 = offsets[9] as usize;
+    z[a9..a9 + 40].fill(f32::NAN);
+    let per_track: Vec<(f64, f64, f64)> = (0..n_tracks)
+        .map(|i| (0.3 + 0.002 * i as f64, 0.05 + 0.0005 * i as f64, 0.1))
+        .collect();
+    let shared = [(0.5, 0.2, 0.25)];
+    for params in [&shared[..], &per_track[..]] {
+        for init in [Init::TwoPoint, Init::First] {
+            for (strided, resid, parallel) in [
+                (false, false, false),
+                (false, false, true),
+                (true, false, false),
+                (false, true, true),
+            ] {
+                // Strided: every other element of a buffer twice as long.
+                let zbuf: Vec<f32> = if strided {
+                    z.iter().flat_map(|&v| [v, -1.0]).collect()
+                } else {
+                    z.clone()
+                };
+                let samples = Samples {
+                    data: &zbuf,
+                    base: 0,
+                    s_row: 0,
+                    s_sample: if strided { 2 } else { 1 },
+                    s_comp: 1,
+                    row_len: total,
+                    n_rows: 1,
+                    m: 1,
+                };
+                // Two calls: the first half of every track, then the rest.
+                let half: Vec<usize> = lens.iter().map(|&l| l / 2).collect();
+                let mut st = vec![TrackState::default(); n_tracks];
+                let mut got = vec![vec![0f32; 2 * total]; 2];
+                let mut got_r = vec![vec![0f32; total]; 2];
+                let mut chunk_z: Vec<Vec<f32>> = vec![Vec::new(), Vec::new()];
+                for (part, cz) in chunk_z.iter_mut().enumerate() {
+                    let mut off = vec![0i64];
+                    for (i, &l) in lens.iter().enumerate() {
+                        let (a, b) = if part == 0 {
+                            (0, half[i])
+                        } else {
+                            (half[i], l)
+                        };
+                        let o = offsets[i] as usize;
+                        cz.extend_from_slice(&z[o + a..o + b]);
+                        off.push(off.last().copied().unwrap_or(0) + (b - a) as i64);
+                    }
+                    let n = cz.len();
+                    let buf: Vec<f32> = if strided {
+                        cz.iter().flat_map(|&v| [v, -1.0]).collect()
+                    } else {
+                        cz.clone()
+                    };
+                    let smp = Samples {
+                        data: &buf,
+                        row_len: n,
+                        ..samples
+                    };
+                    let mut out = vec![0f32; 2 * n];
+                    let mut r = vec![0f32; n];
+                    filter_ab_f32_tracks(
+                        params,
+                        init,
+                        &off,
+                        &smp,
+                        &mut st,
+                        &mut out,
+                        resid.then_some(&mut r[..]),
+                        parallel,
+                    )
+                    .unwrap();
+                    got[part] = out;
+                    got_r[part] = r;
+                }
+                // Alone: each track through the rectangular kernel, in the
+                // same two chunks and the same layout (strided rows are not
+                // split there either).
+                for i in 0..n_tracks {
+                    let p = [params[if params.len() == 1 { 0 } else { i }]];
+                    let mut st1 = [TrackState::default()];
+                    let o = offsets[i] as usize;
+                    for part in 0..2 {
+                        let (a, b) = if part == 0 {
+                            (0, half[i])
+                        } else {
+                            (half[i], lens[i])
+                        };
+                        let zt = &z[o + a..o + b];
+                        let n = zt.len();
+                        let zt2: Vec<f32> = zt.iter().flat_map(|&v| [v, -1.0]).collect();
+                        let meas = if strided {
+                            Measurements {
+                                data: &zt2,
+                                base: 0,
+                                s_track: 2 * n as isize,
+                                s_sample: 2,
+                                s_comp: 1,
+                                n_tracks: 1,
+                                n_samples: n,
+                                m: 1,
+                            }
+                        } else {
+                            Measurements::contiguous(zt, 1, n, 1).unwrap()
+                        };
+                        let mut out = vec![0f32; 2 * n];
+                        let mut r = vec![0f32; n];
+                        if n > 0 {
+                            filter_ab_f32(
+                                &p,
+                                init,
+                                &meas,
+                                &mut st1,
+                                &mut out,
+                                resid.then_some(&mut r[..]),
+                                false,
+                            )
+                            .unwrap();
+                        }
+                        // This track's place in the chunk's flat layout.
+                        let before: usize = (0..i)
+                            .map(|j| {
+                                if part == 0 {
+                                    half[j]
+                                } else {
+                                    lens[j] - half[j]
+                                }
+                            })
+                            .sum();
+                        let nc = got_r[part].len();
+                        for k in 0..n {
+                            let g = &got[part];
+                            assert!(
+                                same(g[before + k], out[k]) && same(g[nc + before + k], out[n + k]),
+                                "track {i} (len {}) part {part} sample {k}: {:?} vs {:?} \
+                                 (strided {strided}, resid {resid}, {} params, {init:?})",
+                                lens[i],
+                                (g[before + k], g[nc + before + k]),
+                                (out[k], out[n + k]),
+                                params.len()
+                            );
+                            if resid {
+                                assert!(same(got_r[part][before + k], r[k]), "residual {i} {k}");
+                            }
+                        }
+                    }
+                    assert_eq!(st[i].phase, st1[0].phase, "track {i}");
+                    assert!(
+                        same(st[i].x[0] as f32, st1[0].x[0] as f32)
+                            && same(st[i].x[1] as f32, st1[0].x[1] as f32),
+                        "state of track {i}"
+                    );
+                }
+            }
+        }
+    }
+}
