@@ -16,6 +16,8 @@ Ratios measured in one run, on the same machine, same total samples:
 * ragged vs rectangular: 10^7 samples as tracks of mixed lengths 10..10,000
   (log-uniform) in one flat array with ``offsets`` vs the rectangular
   fixed-T kernel on the same number of samples. Target: >= 0.8.
+* the same in float32, with the default kernels (float64 arithmetic) and
+  ``float32_arithmetic=True``, without timestamps.
 
 Throughput is samples per second, best of ``--repeat`` round-robin rounds
 (wall time, or CPU time of this process with ``--cpu``: steadier on a
@@ -88,6 +90,11 @@ def main() -> None:
     tq = tr.reshape(zq.shape)
     out_q = np.empty((2,) + zq.shape)
     out_r = np.empty((2, total))
+    # float32 data: the default kernels (float64 arithmetic) and
+    # float32_arithmetic=True
+    zr32, zq32 = zr.astype(np.float32), zq.astype(np.float32)
+    out_r32, out_q32 = np.empty((2, total), np.float32), np.empty((2,) + zq.shape, np.float32)
+    fixed32 = AlphaBetaFilter(design.alpha, design.beta, 0.1, float32_arithmetic=True)
 
     cases = {
         "fixed": lambda: design.run(z, out=out, threads=th),
@@ -107,6 +114,10 @@ def main() -> None:
         "long1_t": lambda: design.run(zr, t=tr, out=out_r, threads=th),
         "long1_t_fixed": lambda: fixed.run(zr, t=tr, out=out_r, threads=th),
         "long3_t": lambda: design.run(zr, t=tr, offsets=off3, out=out_r, threads=th),
+        "rect32": lambda: fixed.run(zq32, out=out_q32, threads=th),
+        "rag32": lambda: fixed.run(zr32, offsets=off, out=out_r32, threads=th),
+        "rect32a": lambda: fixed32.run(zq32, out=out_q32, threads=th),
+        "rag32a": lambda: fixed32.run(zr32, offsets=off, out=out_r32, threads=th),
     }
     # Round robin: every case once per round, best per case (load drifts
     # affect all cases alike).
@@ -145,6 +156,18 @@ def main() -> None:
     print(f"| ragged with t, design schedule | {total / t_rag_t / 1e6:.0f} | {t_rect / t_rag_t:.2f} (vs rectangular fixed-T) |")
     t_rag_tf = best_t["rag_t_fixed"]
     print(f"| ragged with t, fixed-gain schedule | {total / t_rag_tf / 1e6:.0f} | {t_rect / t_rag_tf:.2f} (vs rectangular fixed-T) |")
+
+    print()
+    t_r32 = best_t["rect32"]
+    print(f"| float32 ({total:,} samples), no t | Msamples/s | vs rectangular, default |")
+    print("|---|---:|---:|")
+    for name, k in (
+        (f"rectangular ({rect_tracks:,} x {total // rect_tracks:,}), default (float64 arithmetic)", "rect32"),
+        ("ragged (offsets), default", "rag32"),
+        ("rectangular, float32_arithmetic=True", "rect32a"),
+        ("ragged (offsets), float32_arithmetic=True", "rag32a"),
+    ):
+        print(f"| {name} | {total / best_t[k] / 1e6:.0f} | {t_r32 / best_t[k]:.2f} |")
 
     print()
     t_long = best_t["long1"]

@@ -150,8 +150,9 @@ def test_errors():
         lambda: f.smooth(z),
         lambda: f.smooth(z, lag=3),
         lambda: f.run(z, t=t),
-        lambda: f.run(z.reshape(-1), offsets=[0, 50, 100]),
-        lambda: f.run(np.stack([z, z], axis=-1), axes=2),
+        lambda: f.run(z.reshape(-1), t=np.r_[t, t + 5.0], offsets=[0, 50, 100]),
+        lambda: f.run(z.reshape(-1), offsets=[0, 50, 100], max_gap=1.0),
+        lambda: f.run(z.reshape(-1), offsets=[0, 50, 100], on_duplicate="drop"),
     ):
         with pytest.raises(ValueError, match="float32_arithmetic=True"):
             call()
@@ -197,7 +198,8 @@ def test_vector_kernels_bit_identical_to_scalar_loop(tmp_path):
     # (ABKIT_DISABLE_SIMD=1: the scalar loop) give the same bits as the
     # default: short rows straight from the batch (from memory: streamed
     # outputs through the stages), longer rows in groups, rows with NaN at
-    # their starts and all-NaN rows.
+    # their starts and all-NaN rows; streamed outputs whose v rows are not
+    # at the x rows' line offsets (33 x 40,001, and a ragged batch).
     import os
     import subprocess
     import sys
@@ -207,7 +209,7 @@ import sys, numpy as np
 from abkit import AlphaBetaFilter
 rng = np.random.default_rng(11)
 res = {}
-for n_tracks, n in [(3000, 45), (20000, 100), (333, 300), (40, 2000)]:
+for n_tracks, n in [(3000, 45), (20000, 100), (333, 300), (40, 2000), (33, 40001)]:
     z = rng.normal(size=(n_tracks, n)).cumsum(1).astype(np.float32) + 100.0
     z[rng.random(z.shape) < 0.02] = np.nan
     z[::9, :3] = np.nan
@@ -217,6 +219,17 @@ for n_tracks, n in [(3000, 45), (20000, 100), (333, 300), (40, 2000)]:
         r = f.run(z, init=init)
         res[f"{n_tracks}x{n}{init}"] = r.states
         res[f"{n_tracks}x{n}{init}state"] = r.state._packed
+# ragged, outputs streamed (over 1e6 samples), the v row not at the x row's
+# line offset (N % 16 != 0), tracks of 0..2,000 samples
+lens = rng.integers(0, 2000, 1200)
+lens[-1] += 1 if lens.sum() % 16 == 0 else 0
+off = np.r_[0, np.cumsum(lens)]
+zr = rng.normal(size=off[-1]).cumsum().astype(np.float32)
+zr[rng.random(zr.shape) < 0.01] = np.nan
+for init in ["two-point", "first"]:
+    r = AlphaBetaFilter(0.4, 0.1, 0.5, float32_arithmetic=True).run(zr, offsets=off, init=init)
+    res[f"ragged{init}"] = r.states
+    res[f"ragged{init}state"] = r.state._packed
 np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
 """
     runs = (("on", {}), ("off", {"ABKIT_DISABLE_SIMD": "1"}))
@@ -234,3 +247,81 @@ np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
             assert np.array_equal(np.isnan(a), np.isnan(b)), (tag, k)
             ok = ~np.isnan(a)
             assert np.array_equal(a[ok].view(np.uint8), b[ok].view(np.uint8)), (tag, k)
+
+
+def ragged(seed: int, n_tracks: int, hi: int, nan_rate: float = 0.02):
+    """A ragged float32 batch: lengths 0..hi (and 0, 1, 2, 3, 17 first),
+    NaN at random, one all-NaN track, one starting late."""
+    rng = np.random.default_rng(seed)
+    lens = rng.integers(0, hi, n_tracks)
+    lens[:6] = [0, 1, 2, 3, 17, 0]
+    lens[6:8] = [40, 300]
+    off = np.r_[0, np.cumsum(lens)].astype(np.int64)
+    z = (50.0 + 0.1 * rng.standard_normal(off[-1]).cumsum()).astype(np.float32)
+    z[rng.random(z.shape) < nan_rate] = np.nan
+    z[off[6] : off[7]] = np.nan
+    z[off[7] : off[7] + 50] = np.nan
+    return z, off
+
+
+@pytest.mark.parametrize("init", ["two-point", "first"])
+@pytest.mark.parametrize("per_track", [False, True])
+def test_ragged_each_track_as_alone(init, per_track):
+    # offsets=: every track (estimates, residuals, final state) has the
+    # bits of that track run alone, whatever the threads; groups of 16
+    # tracks of different lengths in the vector lanes, the rest scalar.
+    z, off = ragged(3, 400, 700)
+    n = off.size - 1
+    if per_track:
+        alpha = np.linspace(0.2, 0.8, n)
+        beta = np.linspace(0.01, 0.3, n)
+    else:
+        alpha, beta = np.full(n, 0.45), np.full(n, 0.12)
+    T = 0.25
+    f = abkit.AlphaBetaFilter(alpha if per_track else 0.45, beta if per_track else 0.12, T, float32_arithmetic=True)
+    r = f.run(z, offsets=off, init=init, return_residuals=True)
+    r1 = f.run(z, offsets=off, init=init, threads=1)
+    assert r.states.dtype == np.float32 and r.residuals.dtype == np.float32
+    np.testing.assert_array_equal(r1.states, r.states)
+    np.testing.assert_array_equal(r1.state._packed, r.state._packed)
+    for i in range(n):
+        a, b = off[i], off[i + 1]
+        one = abkit.AlphaBetaFilter(alpha[i], beta[i], T, float32_arithmetic=True).run(z[a:b], init=init, return_residuals=True)
+        assert np.array_equal(r.states[:, a:b], one.states, equal_nan=True), i
+        assert np.array_equal(r.residuals[a:b], one.residuals, equal_nan=True), i
+        assert np.array_equal(r.state._packed[i], one.state._packed[0], equal_nan=True), i
+
+
+def test_ragged_streams_strides_axes_and_out():
+    z, off = ragged(4, 300, 900)
+    f = abkit.AlphaBetaFilter(0.3, 0.05, 0.1, float32_arithmetic=True)
+    whole = f.run(z, offsets=off)
+    # chunked: the first half of every track, then the rest with state=
+    lens = np.diff(off)
+    half = lens // 2
+    idx1 = np.concatenate([np.arange(off[i], off[i] + half[i]) for i in range(lens.size)])
+    idx2 = np.concatenate([np.arange(off[i] + half[i], off[i + 1]) for i in range(lens.size)])
+    r1 = f.run(z[idx1], offsets=np.r_[0, np.cumsum(half)])
+    r2 = f.run(z[idx2], offsets=np.r_[0, np.cumsum(lens - half)], state=r1.state)
+    got = np.empty_like(whole.states)
+    got[:, idx1] = r1.states
+    got[:, idx2] = r2.states
+    np.testing.assert_array_equal(got, whole.states)
+    np.testing.assert_array_equal(r2.state._packed, whole.state._packed)
+    # strided z: the same bits
+    zz = np.zeros(2 * z.size, np.float32)
+    zz[::2] = z
+    np.testing.assert_array_equal(f.run(zz[::2], offsets=off).states, whole.states)
+    # out= filled in place
+    out = np.full((2, z.size), -1.0, np.float32)
+    r = f.run(z, offsets=off, out=out)
+    assert r.states is out or np.shares_memory(r.states, out)
+    np.testing.assert_array_equal(out, whole.states)
+    # axes=2: each axis as its own ragged batch
+    z2 = np.stack([z, z[::-1].copy()], axis=-1)
+    ra = f.run(z2, offsets=off, axes=2)
+    for a in range(2):
+        np.testing.assert_array_equal(ra.states[..., a], f.run(np.ascontiguousarray(z2[:, a]), offsets=off).states)
+    # float64 data: the default kernels (float64 arithmetic)
+    d = f.run(z.astype(np.float64), offsets=off)
+    assert d.states.dtype == np.float64

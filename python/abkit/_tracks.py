@@ -262,7 +262,9 @@ def run_tracks(
     out2 = o.reshape(f.n, n_total)
     res2 = np.empty((n_total, m), dtype=z3.dtype) if return_residuals else None
     counts = np.zeros((n_tracks, 2), dtype=np.int64)
-    if getattr(f, "float32_arithmetic", False) and z3.dtype == np.float32:
+    from .filters import AlphaBetaFilter
+
+    if isinstance(f, AlphaBetaFilter) and f.float32_arithmetic and z3.dtype == np.float32:
         # AlphaBetaFilter(float32_arithmetic=True): without timestamps,
         # restarts, drops or smoothing (the callers raise for those).
         if t is not None or gap is not None or drop or smoother is not None:

@@ -37,6 +37,11 @@
 //! first stepping to a sample whose `x` line starts a cache line (heads and
 //! tails as vector steps of all lanes, each lane masked to its range).
 //!
+//! Ragged batches ([`filter_ab_f32_tracks`], the Arrow list layout without
+//! timestamps): each track as it would run alone; the running tracks of a
+//! block of consecutive tracks that are not split go through the same row
+//! lanes, 16 tracks of similar lengths at a time.
+//!
 //! Short contiguous rows (at most 768 samples) run straight from the batch
 //! ([`short_batch`]: no per-track jobs; with streamed outputs through
 //! stages of 16 rows drained as whole lines; the next group's rows
@@ -315,10 +320,14 @@ unsafe fn rows_fma(
 
 /// [`LANES`] lanes, lane `l` stepping its states `x[l]`, `v[l]` over the
 /// samples `k0[l]..` of its row `z[l]`, writing `xs[l]`, `vs[l]` (rows of a
-/// batch, or segments of one split track): each lane steps to its vector
-/// start (with streamed outputs, a sample whose `x` output starts a cache
-/// line; streaming is dropped unless every lane's `x` and `v` rows lie at
-/// the same line offset), the lanes run whole blocks together, then each
+/// batch, tracks of a ragged batch, or segments of one split track): each
+/// lane steps to its vector start (with streamed outputs, a sample whose
+/// `x` output starts a cache line; the `v` rows are streamed too where every
+/// lane's `v` row lies at its `x` row's line offset, else stored with
+/// ordinary stores, their lines fetched for ownership ahead: a ragged batch
+/// of 10^7 samples whose `v` row starts 16 bytes into a line, 1.65 -> 0.74
+/// ns per sample against dropping streaming for both; docs/benchmarks.md,
+/// session 25), the lanes run whole blocks together, then each
 /// its tail (heads and tails in [`avx2::column_steps`]: on rows of 100,
 /// 2.0 -> 1.8 ns per sample against the lanes stepped one by one). A lane
 /// whose row is shorter than `k0[l] + MIN_VECTOR_SAMPLES` makes every lane
@@ -360,8 +369,10 @@ unsafe fn lanes_fma(
         unsafe { avx2::column_steps(c, x, v, k0, &len, &zr, &xr, &vr) };
         return;
     }
-    // Streamed stores need the x and v rows at the same line offset.
-    let nt = nt
+    // Every lane's `x` row is streamed from a line-aligned sample; the `v`
+    // rows only if they lie at the same line offsets as the `x` rows (else
+    // ordinary stores for `v`).
+    let nt_v = nt
         && (0..LANES).all(|l| {
             (vs[l].as_ptr() as usize)
                 .wrapping_sub(xs[l].as_ptr() as usize)
@@ -391,7 +402,7 @@ unsafe fn lanes_fma(
         std::array::from_fn(|l| q[l].wrapping_add(p[l]))
     };
     let zp: [*const f32; LANES] = std::array::from_fn(|l| zr[l].wrapping_add(p[l]));
-    unsafe { avx2::rows16(c, x, v, &zp, &at(&xr), &at(&vr), blocks, nt, ahead) };
+    unsafe { avx2::rows16(c, x, v, &zp, &at(&xr), &at(&vr), blocks, [nt, nt_v], ahead) };
     // The tails.
     let from: [usize; LANES] = std::array::from_fn(|l| p[l] + BLOCK * blocks);
     unsafe { avx2::column_steps(c, x, v, &from, &len, &zr, &xr, &vr) };
@@ -1319,6 +1330,9 @@ mod avx2 {
     // Not inlined into its two callers' shared `lanes_fma`: inlined there,
     // 16 rows of 2,100 ran 1.03-1.08 ns per sample against 0.84-0.91
     // (AMD EPYC, session 23).
+    /// Samples ahead at which [`rows16`] fetches ordinary-stored `v` lines.
+    const V_AHEAD: usize = 4 * BLOCK;
+
     #[inline(never)]
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn rows16(
@@ -1329,7 +1343,7 @@ mod avx2 {
         xo: &[*mut f32; LANES],
         vo: &[*mut f32; LANES],
         blocks: usize,
-        nt: bool,
+        nt: [bool; 2],
         ahead: usize,
     ) {
         let (k0, k1) = (konsts(c, 0), konsts(c, 1));
@@ -1345,6 +1359,13 @@ mod avx2 {
             if ahead > 0 {
                 for zl in z {
                     crate::filter::prefetch(zl.wrapping_add(off + ahead));
+                }
+            }
+            if nt[0] && !nt[1] {
+                // `v` rows stored with ordinary stores in a streamed batch:
+                // their lines fetched for ownership a few blocks ahead.
+                for vl in vo {
+                    _mm_prefetch::<_MM_HINT_ET0>(vl.wrapping_add(off + V_AHEAD) as *const i8);
                 }
             }
             // z rows -> columns; any NaN in the block?
@@ -1385,7 +1406,7 @@ mod avx2 {
             // Columns -> rows, stored a whole line (both halves) at a time:
             // streamed lines written in pieces are much slower.
             for g in 0..2 {
-                for (s, dst) in [(&sx[g], xo), (&sv[g], vo)] {
+                for (s, dst, nt) in [(&sx[g], xo, nt[0]), (&sv[g], vo, nt[1])] {
                     let mut lo: [__m256; 8] = std::array::from_fn(|j| s[j]);
                     let mut hi: [__m256; 8] = std::array::from_fn(|j| s[8 + j]);
                     tr8(&mut lo);
