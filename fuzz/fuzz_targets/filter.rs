@@ -8,11 +8,14 @@
 //! arithmetic (`f32arith`, batches of 16-20 tracks of 1-200 samples so the
 //! vector rows and the column steps run):
 //! no panic, parallel = sequential, two chunks = one run, and each track
-//! equals the track run alone (the scalar loop), bit for bit.
+//! equals the track run alone (the scalar loop), bit for bit; the same
+//! samples cut into a ragged batch (`filter_ab_f32_tracks`): each track
+//! equals that track alone.
 #![no_main]
 
-use abkit_core::filter::f32arith::filter_ab_f32;
+use abkit_core::filter::f32arith::{filter_ab_f32, filter_ab_f32_tracks};
 use abkit_core::filter::{filter_ab, filter_general, Gains, Init, Measurements, TrackState};
+use abkit_core::ragged::Samples;
 use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
@@ -250,6 +253,42 @@ fn f32_case(b: &mut Bytes) {
         assert!(
             same32(&o[ns..], &out[(nt + i) * ns..(nt + i + 1) * ns]),
             "float32: track {i} alone differs (v)"
+        );
+    }
+    // The same samples as a ragged batch (`filter_ab_f32_tracks`), cut into
+    // tracks of 0..2 ns samples (the rest in the last): each track equals
+    // that track alone.
+    let total = nt * ns;
+    let mut offs = vec![0i64];
+    let mut at = 0usize;
+    while at < total {
+        let l = if b.is_empty() || offs.len() > 4 * nt {
+            total - at
+        } else {
+            b.usize_below(2 * ns + 1)
+        };
+        at = (at + l).min(total);
+        offs.push(at as i64);
+    }
+    let Ok(smp) = Samples::flat(&z, 1) else {
+        return;
+    };
+    let mut st_r = vec![TrackState::default(); offs.len() - 1];
+    let mut out_r = vec![0f32; 2 * total];
+    let par = b.u8() % 2 == 0;
+    filter_ab_f32_tracks(&p, init, &offs, &smp, &mut st_r, &mut out_r, None, par)
+        .expect("ragged float32 run failed where the batch ran");
+    for (i, w) in offs.windows(2).enumerate() {
+        let (lo, hi) = (w[0] as usize, w[1] as usize);
+        if hi == lo {
+            continue;
+        }
+        let mut s1 = [TrackState::default()];
+        let o = run32(&p, init, &z[lo..hi], 1, hi - lo, &mut s1, false).expect("alone");
+        assert!(
+            same32(&o[..hi - lo], &out_r[lo..hi])
+                && same32(&o[hi - lo..], &out_r[total + lo..total + hi]),
+            "float32 ragged: track {i} ({lo}..{hi}) differs from the track alone"
         );
     }
 }
