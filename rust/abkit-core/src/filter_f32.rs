@@ -38,9 +38,9 @@
 //! tails as vector steps of all lanes, each lane masked to its range).
 //!
 //! Ragged batches ([`filter_ab_f32_tracks`], the Arrow list layout without
-//! timestamps): each track as it would run alone; the running tracks of a
-//! block of consecutive tracks that are not split go through the same row
-//! lanes, 16 tracks of similar lengths at a time.
+//! timestamps): each track as it would run alone; the running tracks that
+//! are not split go through the same row lanes, 16 tracks of similar
+//! lengths at a time.
 //!
 //! Short contiguous rows (at most 768 samples) run straight from the batch
 //! ([`short_batch`]: no per-track jobs; with streamed outputs through
@@ -308,14 +308,42 @@ unsafe fn rows_fma(
         vs[l] = &mut b[..n];
         sts[l] = Some(st);
     }
+    // Rows up to NEXT_ROWS_MAX samples: the next group's rows (LANES rows
+    // further on where the rows are evenly spaced; a prefetch past the batch
+    // is harmless) fetched block by block at the offsets the lanes read.
+    let next = if z.s_track > 0 && z.s_sample == 1 && n <= NEXT_ROWS_MAX {
+        Next::Dist(LANES * z.s_track as usize)
+    } else {
+        Next::None
+    };
     // SAFETY: forwarded (AVX2 and FMA).
-    unsafe { lanes_fma(&c, &mut x, &mut v, k0, rows, xs, vs, nt, 0) };
+    unsafe { lanes_fma(&c, &mut x, &mut v, k0, rows, xs, vs, nt, next) };
     for (l, st) in sts.into_iter().enumerate() {
         if let Some(st) = st {
             st.x[0] = x[l] as f64;
             st.x[1] = v[l] as f64;
         }
     }
+}
+
+/// Longest rows of a batch whose next group's rows the row lanes prefetch
+/// (`rows_fma`); longer rows have the hardware prefetcher going long enough.
+/// float32 arithmetic, 10^7 samples from memory, ns per sample, without ->
+/// with: rows of 1,500 0.73-0.96 -> 0.59-0.64, 2,500 0.78 -> 0.56-0.61;
+/// rows of 5,000 0.52 -> 0.56-0.60 and 10,000 0.50-0.54 -> 0.56-0.58 were
+/// slower with it (docs/benchmarks.md, session 25).
+const NEXT_ROWS_MAX: usize = 4096;
+
+/// The rows [`lanes_fma`] prefetches block by block (at each block's
+/// offset from the lanes' vector starts): none, every lane's row a fixed
+/// distance further on (the next group of a batch of evenly spaced rows),
+/// or given rows (the next group of a ragged batch, from their steady
+/// starts).
+#[derive(Clone, Copy)]
+enum Next<'n> {
+    None,
+    Dist(usize),
+    Rows(&'n [*const f32; LANES]),
 }
 
 /// [`LANES`] lanes, lane `l` stepping its states `x[l]`, `v[l]` over the
@@ -334,8 +362,8 @@ unsafe fn rows_fma(
 /// run the column steps only (rows of 50: 3.4 -> 2.5 ns per sample against
 /// the scalar steps, when the minimum was 64); outputs shorter than
 /// `z[l]`, the scalar steps (same
-/// results either way). With `ahead > 0` each block prefetches every lane's
-/// `z` `ahead` samples further on (the next group of short rows).
+/// results either way). Each block prefetches the `z` rows `next` names at
+/// the block's offset (the next group's rows: [`Next`]).
 ///
 /// # Safety
 /// AVX2 and FMA are available.
@@ -351,7 +379,7 @@ unsafe fn lanes_fma(
     mut xs: [&mut [f32]; LANES],
     mut vs: [&mut [f32]; LANES],
     nt: bool,
-    ahead: usize,
+    next: Next<'_>,
 ) {
     let len: [usize; LANES] = std::array::from_fn(|l| z[l].len());
     let fits =
@@ -402,7 +430,24 @@ unsafe fn lanes_fma(
         std::array::from_fn(|l| q[l].wrapping_add(p[l]))
     };
     let zp: [*const f32; LANES] = std::array::from_fn(|l| zr[l].wrapping_add(p[l]));
-    unsafe { avx2::rows16(c, x, v, &zp, &at(&xr), &at(&vr), blocks, [nt, nt_v], ahead) };
+    let pf: Option<[*const f32; LANES]> = match next {
+        Next::None => None,
+        Next::Dist(d) => Some(std::array::from_fn(|l| zp[l].wrapping_add(d))),
+        Next::Rows(r) => Some(*r),
+    };
+    unsafe {
+        avx2::rows16(
+            c,
+            x,
+            v,
+            &zp,
+            &at(&xr),
+            &at(&vr),
+            blocks,
+            [nt, nt_v],
+            pf.as_ref(),
+        )
+    };
     // The tails.
     let from: [usize; LANES] = std::array::from_fn(|l| p[l] + BLOCK * blocks);
     unsafe { avx2::column_steps(c, x, v, &from, &len, &zr, &xr, &vr) };
@@ -497,7 +542,7 @@ unsafe fn split_fma(
                 xs,
                 vs,
                 nt,
-                0,
+                Next::None,
             )
         };
     }
@@ -681,7 +726,13 @@ unsafe fn short_rows(
             let vl: [&mut [f32]; LANES] = std::array::from_fn(|_| vr.next().unwrap_or_default());
             // A row not running after its start-up consumed all n samples
             // (k0 = n): its lane takes no steps. SAFETY: forwarded.
-            unsafe { lanes_fma(&c, &mut x, &mut v, &k0, zl, xl, vl, false, ahead) };
+            let next = if ahead > 0 {
+                Next::Dist(ahead)
+            } else {
+                Next::None
+            };
+            // SAFETY: forwarded.
+            unsafe { lanes_fma(&c, &mut x, &mut v, &k0, zl, xl, vl, false, next) };
             for (l, s) in sts.iter_mut().enumerate() {
                 if s.phase == 2.0 {
                     s.x[0] = x[l] as f64;
@@ -808,8 +859,8 @@ pub fn filter_ab_f32(
 }
 
 /// Samples of a block of consecutive tracks of [`filter_ab_f32_tracks`]
-/// (at least; the unit of parallel work, and the tracks a block sorts by
-/// length into groups of [`LANES`]).
+/// (at least; the unit of parallel work of the start-ups, splits and
+/// scalar tracks).
 const TRACKS_BLOCK_SAMPLES: usize = 1 << 20;
 
 /// A ragged batch of `f32` tracks in `f32` arithmetic (the Arrow list
@@ -820,21 +871,22 @@ const TRACKS_BLOCK_SAMPLES: usize = 1 << 20;
 /// a long running track split as there, otherwise the steady loop), so the
 /// result does not depend on the other tracks, the blocking or the thread
 /// count. Tracks in blocks of consecutive tracks (about
-/// [`TRACKS_BLOCK_SAMPLES`] samples) on rayon's pool; within a block the
-/// running tracks that are not split go through the AVX2 row lanes
-/// ([`lanes_fma`], bit-identical to the loop) [`LANES`] at a time, sorted
-/// by length so that a group's lanes end close together; the shortest
-/// (fewer than [`LANES`] left over) and all tracks with residuals or
-/// strided `z` run the scalar loop.
+/// [`TRACKS_BLOCK_SAMPLES`] samples) on rayon's pool: start-ups, splits,
+/// and (with residuals, strided `z` or no AVX2) the scalar loop; then the
+/// running tracks of the whole batch that are not split, sorted by length,
+/// go through the AVX2 row lanes ([`lanes_fma`], bit-identical to the
+/// loop) [`LANES`] at a time, so that a group's lanes end close together
+/// (groups of 16 in parallel, each prefetching the next group's rows); the
+/// shortest (fewer than [`LANES`] left over) run the loop.
 #[allow(clippy::too_many_arguments)]
-pub fn filter_ab_f32_tracks(
+pub fn filter_ab_f32_tracks<'a>(
     params: &[(f64, f64, f64)],
     init: Init,
     offsets: &[i64],
-    z: &crate::ragged::Samples<'_, f32>,
-    states: &mut [TrackState],
-    out: &mut [f32],
-    resid: Option<&mut [f32]>,
+    z: &crate::ragged::Samples<'a, f32>,
+    states: &'a mut [TrackState],
+    out: &'a mut [f32],
+    resid: Option<&'a mut [f32]>,
     parallel: bool,
 ) -> Result<()> {
     use crate::Error;
@@ -902,7 +954,7 @@ pub fn filter_ab_f32_tracks(
         &'b mut [f32],
         Option<&'b mut [f32]>,
     );
-    let mut blocks: Vec<Blk<'_>> = Vec::new();
+    let mut blocks: Vec<Blk<'a>> = Vec::new();
     let (mut st_rest, mut x_rest, mut v_rest, mut r_rest) = (states, xs, vs, resid);
     let mut j0 = 0;
     while j0 < n_tracks {
@@ -925,15 +977,126 @@ pub fn filter_ab_f32_tracks(
         (st_rest, x_rest, v_rest, r_rest) = (b, xb, vb, rb);
         j0 = j1;
     }
-    let run = |(j0, j1, st, xs, vs, rs): Blk<'_>| {
-        tracks_block_dispatch(params, init, &off[j0..=j1], j0, &zs, st, xs, vs, rs, nt);
+    let run = |(j0, j1, st, xs, vs, rs): Blk<'a>| -> Vec<LaneJob<'a>> {
+        tracks_block_dispatch(params, init, &off[j0..=j1], j0, &zs, st, xs, vs, rs, nt)
     };
-    if parallel && blocks.len() > 1 {
-        blocks.into_par_iter().for_each(run);
+    let lanes: Vec<Vec<LaneJob<'a>>> = if parallel && blocks.len() > 1 {
+        blocks.into_par_iter().map(run).collect()
     } else {
-        blocks.into_iter().for_each(run);
+        blocks.into_iter().map(run).collect()
+    };
+    #[cfg(target_arch = "x86_64")]
+    {
+        let mut lanes: Vec<LaneJob<'_>> = lanes.into_iter().flatten().collect();
+        if !lanes.is_empty() {
+            // Longest first, over the whole batch: groups of close lengths
+            // (their tails in the column steps are short), the few left over
+            // the shortest.
+            lanes.sort_by_key(|j| std::cmp::Reverse(j.row.len() - j.k0));
+            let full = lanes.len() / LANES * LANES;
+            let (groups, rest) = lanes.split_at_mut(full);
+            let konst = |i: usize| {
+                let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
+                C32::new(a, b, t)
+            };
+            let task = |chunk: &mut [LaneJob<'_>]| {
+                let n_groups = chunk.len() / LANES;
+                for g in 0..n_groups {
+                    // The next group's rows (elsewhere in the batch), from
+                    // their steady starts, fetched by the lanes block by
+                    // block.
+                    let next: Option<[*const f32; LANES]> =
+                        chunk.get((g + 1) * LANES..(g + 2) * LANES).map(|nx| {
+                            std::array::from_fn(|l| nx[l].row.as_ptr().wrapping_add(nx[l].k0))
+                        });
+                    let grp = &mut chunk[g * LANES..(g + 1) * LANES];
+                    // SAFETY: lane jobs exist only where AVX2 and FMA are
+                    // available (`tracks_block`).
+                    unsafe { lane_group(&konst, grp, nt, next.as_ref()) };
+                }
+                super::store_fence();
+            };
+            // Tasks of 16 groups.
+            if parallel && groups.len() > 16 * LANES {
+                groups.par_chunks_mut(16 * LANES).for_each(task);
+            } else {
+                task(groups);
+            }
+            for j in rest {
+                // SAFETY: as above.
+                unsafe { lane_loop(&konst(j.i), j) };
+            }
+        }
     }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = lanes;
     Ok(())
+}
+
+/// A running track of a ragged batch left by [`tracks_block`] for the
+/// vector lanes: track `i`, its steady state from sample `k0` of `row`, its
+/// outputs `x`, `v` (the whole track).
+struct LaneJob<'a> {
+    i: usize,
+    k0: usize,
+    st: &'a mut TrackState,
+    row: &'a [f32],
+    x: &'a mut [f32],
+    v: &'a mut [f32],
+}
+
+/// [`LANES`] lane jobs through [`lanes_fma`], prefetching the rows `next`
+/// (the next group's) as it goes.
+///
+/// # Safety
+/// AVX2 and FMA are available.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn lane_group(
+    konst: &impl Fn(usize) -> C32,
+    grp: &mut [LaneJob<'_>],
+    nt: bool,
+    next: Option<&[*const f32; LANES]>,
+) {
+    let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
+    let mut x = [0f32; LANES];
+    let mut v = [0f32; LANES];
+    let mut k0 = [0usize; LANES];
+    let mut rows: [&[f32]; LANES] = [&[]; LANES];
+    let mut xl: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
+    let mut vl: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
+    for (l, j) in grp.iter_mut().enumerate().take(LANES) {
+        c[l] = konst(j.i);
+        x[l] = j.st.x[0] as f32;
+        v[l] = j.st.x[1] as f32;
+        k0[l] = j.k0;
+        rows[l] = j.row;
+        xl[l] = std::mem::take(&mut j.x);
+        vl[l] = std::mem::take(&mut j.v);
+    }
+    // SAFETY: forwarded (AVX2 and FMA); a group of fewer than LANES jobs
+    // leaves empty lanes (no samples: `lanes_fma` steps them scalar).
+    let next = next.map_or(Next::None, Next::Rows);
+    unsafe { lanes_fma(&c, &mut x, &mut v, &k0, rows, xl, vl, nt, next) };
+    for (l, j) in grp.iter_mut().enumerate().take(LANES) {
+        j.st.x[0] = x[l] as f64;
+        j.st.x[1] = v[l] as f64;
+    }
+}
+
+/// One lane job in the scalar loop.
+///
+/// # Safety
+/// FMA is available.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+unsafe fn lane_loop(c: &C32, j: &mut LaneJob<'_>) {
+    let row = j.row;
+    let mut o = TrackOut {
+        states: [std::mem::take(&mut j.x), std::mem::take(&mut j.v)],
+        resid: None,
+    };
+    run_loop::<true>(c, j.st, j.k0, row.len(), |k| row[k], &mut o);
 }
 
 /// The measurements of [`filter_ab_f32_tracks`]: any strides, and the flat
@@ -952,24 +1115,23 @@ impl ZSource<'_, '_> {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn tracks_block_dispatch(
+fn tracks_block_dispatch<'a>(
     params: &[(f64, f64, f64)],
     init: Init,
     off: &[usize],
     j0: usize,
-    z: &ZSource<'_, '_>,
-    st: &mut [TrackState],
-    xs: &mut [f32],
-    vs: &mut [f32],
-    rs: Option<&mut [f32]>,
+    z: &ZSource<'_, 'a>,
+    st: &'a mut [TrackState],
+    xs: &'a mut [f32],
+    vs: &'a mut [f32],
+    rs: Option<&'a mut [f32]>,
     nt: bool,
-) {
+) -> Vec<LaneJob<'a>> {
     #[cfg(target_arch = "x86_64")]
     {
         if super::uses_fma() {
             // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
-            unsafe { tracks_block_fma(params, init, off, j0, z, st, xs, vs, rs, nt) };
-            return;
+            return unsafe { tracks_block_fma(params, init, off, j0, z, st, xs, vs, rs, nt) };
         }
         tracks_block::<false>(params, init, off, j0, z, st, xs, vs, rs, nt)
     }
@@ -986,18 +1148,18 @@ fn tracks_block_dispatch(
 #[cfg(target_arch = "x86_64")]
 #[allow(clippy::too_many_arguments)]
 #[target_feature(enable = "fma")]
-fn tracks_block_fma(
+fn tracks_block_fma<'a>(
     params: &[(f64, f64, f64)],
     init: Init,
     off: &[usize],
     j0: usize,
-    z: &ZSource<'_, '_>,
-    st: &mut [TrackState],
-    xs: &mut [f32],
-    vs: &mut [f32],
-    rs: Option<&mut [f32]>,
+    z: &ZSource<'_, 'a>,
+    st: &'a mut [TrackState],
+    xs: &'a mut [f32],
+    vs: &'a mut [f32],
+    rs: Option<&'a mut [f32]>,
     nt: bool,
-) {
+) -> Vec<LaneJob<'a>> {
     tracks_block::<true>(params, init, off, j0, z, st, xs, vs, rs, nt)
 }
 
@@ -1006,28 +1168,24 @@ fn tracks_block_fma(
 /// `xs`, `vs`, `rs` the block's samples of the outputs. Each track as
 /// [`group`] runs a group of one: the start-up, then (with FMA, AVX2, no
 /// residuals and a contiguous row) the split of a long run, else the loop;
-/// the loop's tracks go [`LANES`] at a time through [`lanes_fma`] (the
-/// same operations).
+/// the loop's tracks are returned for the vector lanes (the same
+/// operations) where they run, else run here.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn tracks_block<const FMA: bool>(
+fn tracks_block<'a, const FMA: bool>(
     params: &[(f64, f64, f64)],
     init: Init,
     off: &[usize],
     j0: usize,
-    z: &ZSource<'_, '_>,
-    st: &mut [TrackState],
-    xs: &mut [f32],
-    vs: &mut [f32],
-    rs: Option<&mut [f32]>,
+    z: &ZSource<'_, 'a>,
+    st: &'a mut [TrackState],
+    xs: &'a mut [f32],
+    vs: &'a mut [f32],
+    rs: Option<&'a mut [f32]>,
     nt: bool,
-) {
+) -> Vec<LaneJob<'a>> {
     let pick = |i: usize| params[if params.len() == 1 { 0 } else { i }];
-    let konst = |i: usize| {
-        let (a, b, t) = pick(i);
-        C32::new(a, b, t)
-    };
-    // Per-track output slices, taken out as each track needs them.
+    // Per-track output slices.
     fn per_track<'s>(mut rest: &'s mut [f32], off: &[usize]) -> Vec<&'s mut [f32]> {
         off.windows(2)
             .map(|w| {
@@ -1037,22 +1195,22 @@ fn tracks_block<const FMA: bool>(
             })
             .collect()
     }
-    let mut xt = per_track(xs, off);
-    let mut vt = per_track(vs, off);
-    let mut rt = rs.map(|r| per_track(r, off));
-    // Tracks for the vector lanes: (index in the block, steady start).
-    let mut lanes: Vec<(usize, usize)> = Vec::new();
+    let xt = per_track(xs, off);
+    let vt = per_track(vs, off);
+    let mut rt = rs.map(|r| per_track(r, off).into_iter());
+    let mut lanes: Vec<LaneJob<'a>> = Vec::new();
     #[cfg(target_arch = "x86_64")]
     let vector = FMA && super::simd::avx2_available() && rt.is_none() && z.flat.is_some();
     #[cfg(not(target_arch = "x86_64"))]
     let vector = false;
-    for (j, s) in st.iter_mut().enumerate() {
+    for (j, ((s, x), v)) in st.iter_mut().zip(xt).zip(vt).enumerate() {
         let i = j0 + j;
         let (g0, len) = (off[j], off[j + 1] - off[j]);
-        let c = konst(i);
+        let (a, b, t) = pick(i);
+        let c = C32::new(a, b, t);
         let mut o = TrackOut {
-            states: [std::mem::take(&mut xt[j]), std::mem::take(&mut vt[j])],
-            resid: rt.as_mut().map(|r| std::mem::take(&mut r[j])),
+            states: [x, v],
+            resid: rt.as_mut().and_then(|r| r.next()),
         };
         let row = z.flat.map(|f| &f[g0..g0 + len]);
         let k0 = match row {
@@ -1065,7 +1223,6 @@ fn tracks_block<const FMA: bool>(
         #[cfg(target_arch = "x86_64")]
         if vector {
             if let Some(r) = row {
-                let (a, b, _) = pick(i);
                 if let Some(ls) = super::split_seg_len(a, b, len - k0) {
                     let nt1 = super::streamed::<f32>(2 * len * 4, true);
                     // SAFETY: AVX2 and FMA (`vector`); the row and outputs
@@ -1074,8 +1231,14 @@ fn tracks_block<const FMA: bool>(
                     unsafe { split_fma(&c, s, k0, ls, r, &mut o, nt1) };
                 } else {
                     let [x, v] = o.states;
-                    (xt[j], vt[j]) = (x, v);
-                    lanes.push((j, k0));
+                    lanes.push(LaneJob {
+                        i,
+                        k0,
+                        st: s,
+                        row: r,
+                        x,
+                        v,
+                    });
                 }
                 continue;
             }
@@ -1086,50 +1249,9 @@ fn tracks_block<const FMA: bool>(
         }
     }
     let _ = nt;
-    #[cfg(target_arch = "x86_64")]
-    if let (true, Some(flat)) = (vector, z.flat) {
-        // Longest first: groups of similar lengths, the few left over the
-        // shortest.
-        let run_len = |&(j, k0): &(usize, usize)| off[j + 1] - off[j] - k0;
-        lanes.sort_by_key(|e| std::cmp::Reverse(run_len(e)));
-        let full = lanes.len() / LANES * LANES;
-        for grp in lanes[..full].chunks_exact(LANES) {
-            let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
-            let mut x = [0f32; LANES];
-            let mut v = [0f32; LANES];
-            let mut k0 = [0usize; LANES];
-            let mut rows: [&[f32]; LANES] = [&[]; LANES];
-            let mut xl: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
-            let mut vl: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
-            for (l, &(j, k)) in grp.iter().enumerate() {
-                c[l] = konst(j0 + j);
-                x[l] = st[j].x[0] as f32;
-                v[l] = st[j].x[1] as f32;
-                k0[l] = k;
-                rows[l] = &flat[off[j]..off[j + 1]];
-                xl[l] = std::mem::take(&mut xt[j]);
-                vl[l] = std::mem::take(&mut vt[j]);
-            }
-            // SAFETY: AVX2 and FMA (`vector`).
-            unsafe { lanes_fma(&c, &mut x, &mut v, &k0, rows, xl, vl, nt, 0) };
-            for (l, &(j, _)) in grp.iter().enumerate() {
-                st[j].x[0] = x[l] as f64;
-                st[j].x[1] = v[l] as f64;
-            }
-        }
-        for &(j, k0) in &lanes[full..] {
-            let c = konst(j0 + j);
-            let r = &flat[off[j]..off[j + 1]];
-            let mut o = TrackOut {
-                states: [std::mem::take(&mut xt[j]), std::mem::take(&mut vt[j])],
-                resid: None,
-            };
-            run_loop::<FMA>(&c, &mut st[j], k0, r.len(), |k| r[k], &mut o);
-        }
-    }
-    // The lanes' and the split's streamed stores, before the outputs are
-    // read.
+    // The split's streamed stores, before the outputs are read.
     super::store_fence();
+    lanes
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -1317,22 +1439,25 @@ mod avx2 {
         }
     }
 
+    /// Samples ahead at which [`rows16`] fetches the lines of `v` rows
+    /// stored with ordinary stores in a streamed batch.
+    const V_AHEAD: usize = 4 * BLOCK;
+
     /// `blocks` blocks of [`BLOCK`] steps of the [`LANES`] tracks whose
     /// states are `x`, `v` (updated), reading `z[l]` and writing `xo[l]`,
-    /// `vo[l]` (`BLOCK * blocks` samples from each pointer); with
-    /// `ahead > 0`, prefetching each row's `z` that far ahead per block.
+    /// `vo[l]` (`BLOCK * blocks` samples from each pointer); with `pf`,
+    /// prefetching the rows `pf[l]` at each block's offset (the next
+    /// group's rows).
     ///
     /// # Safety
     /// AVX2 and FMA are available; every pointer is valid for
     /// `BLOCK * blocks` elements, outputs not overlapping each other or the
-    /// inputs; with `nt`, every `xo[l]` and `vo[l]` is 64-byte aligned.
+    /// inputs; with `nt[0]` (streamed `x` rows) every `xo[l]`, with `nt[1]`
+    /// (streamed `v` rows) every `vo[l]` is 64-byte aligned.
     #[allow(clippy::too_many_arguments)]
     // Not inlined into its two callers' shared `lanes_fma`: inlined there,
     // 16 rows of 2,100 ran 1.03-1.08 ns per sample against 0.84-0.91
     // (AMD EPYC, session 23).
-    /// Samples ahead at which [`rows16`] fetches ordinary-stored `v` lines.
-    const V_AHEAD: usize = 4 * BLOCK;
-
     #[inline(never)]
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn rows16(
@@ -1344,7 +1469,7 @@ mod avx2 {
         vo: &[*mut f32; LANES],
         blocks: usize,
         nt: [bool; 2],
-        ahead: usize,
+        pf: Option<&[*const f32; LANES]>,
     ) {
         let (k0, k1) = (konsts(c, 0), konsts(c, 1));
         let one = _mm256_set1_ps(1.0);
@@ -1356,9 +1481,9 @@ mod avx2 {
         let mut sv = [[_mm256_setzero_ps(); BLOCK]; 2];
         for b in 0..blocks {
             let off = b * BLOCK;
-            if ahead > 0 {
-                for zl in z {
-                    crate::filter::prefetch(zl.wrapping_add(off + ahead));
+            if let Some(pf) = pf {
+                for zl in pf {
+                    crate::filter::prefetch(zl.wrapping_add(off));
                 }
             }
             if nt[0] && !nt[1] {
