@@ -861,7 +861,8 @@ pub fn filter_ab_f32(
 /// Samples of a block of consecutive tracks of [`filter_ab_f32_tracks`]
 /// (at least; the unit of parallel work of the start-ups, splits and
 /// scalar tracks).
-const TRACKS_BLOCK_SAMPLES: usize = 1 << 20;
+/// (Small in the unit tests, so that they run many blocks.)
+const TRACKS_BLOCK_SAMPLES: usize = if cfg!(test) { 4096 } else { 1 << 20 };
 
 /// A ragged batch of `f32` tracks in `f32` arithmetic (the Arrow list
 /// layout of [`crate::ragged`], no timestamps): track `i` is flat samples
@@ -873,11 +874,9 @@ const TRACKS_BLOCK_SAMPLES: usize = 1 << 20;
 /// count. Tracks in blocks of consecutive tracks (about
 /// [`TRACKS_BLOCK_SAMPLES`] samples) on rayon's pool: start-ups, splits,
 /// and (with residuals, strided `z` or no AVX2) the scalar loop; then the
-/// running tracks of the whole batch that are not split, sorted by length,
-/// go through the AVX2 row lanes ([`lanes_fma`], bit-identical to the
-/// loop) [`LANES`] at a time, so that a group's lanes end close together
-/// (groups of 16 in parallel, each prefetching the next group's rows); the
-/// shortest (fewer than [`LANES`] left over) run the loop.
+/// running tracks of up to [`PHASE_TRACKS`] tracks at a time that are not
+/// split, sorted by length, go through the AVX2 row lanes ([`lanes_fma`],
+/// bit-identical to the loop) [`LANES`] at a time ([`lane_phase`]).
 #[allow(clippy::too_many_arguments)]
 pub fn filter_ab_f32_tracks<'a>(
     params: &[(f64, f64, f64)],
@@ -959,7 +958,7 @@ pub fn filter_ab_f32_tracks<'a>(
     let mut j0 = 0;
     while j0 < n_tracks {
         let mut j1 = j0 + 1;
-        while j1 < n_tracks && off[j1] - off[j0] < target {
+        while j1 < n_tracks && off[j1] - off[j0] < target && j1 - j0 < PHASE_TRACKS {
             j1 += 1;
         }
         let len = off[j1] - off[j0];
@@ -980,57 +979,84 @@ pub fn filter_ab_f32_tracks<'a>(
     let run = |(j0, j1, st, xs, vs, rs): Blk<'a>| -> Vec<LaneJob<'a>> {
         tracks_block_dispatch(params, init, &off[j0..=j1], j0, &zs, st, xs, vs, rs, nt)
     };
-    let lanes: Vec<Vec<LaneJob<'a>>> = if parallel && blocks.len() > 1 {
-        blocks.into_par_iter().map(run).collect()
-    } else {
-        blocks.into_iter().map(run).collect()
+    let konst = |i: usize| {
+        let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
+        C32::new(a, b, t)
     };
-    #[cfg(target_arch = "x86_64")]
-    {
-        let mut lanes: Vec<LaneJob<'_>> = lanes.into_iter().flatten().collect();
-        if !lanes.is_empty() {
-            // Longest first, over the whole batch: groups of close lengths
-            // (their tails in the column steps are short), the few left over
-            // the shortest.
-            lanes.sort_by_key(|j| std::cmp::Reverse(j.row.len() - j.k0));
-            let full = lanes.len() / LANES * LANES;
-            let (groups, rest) = lanes.split_at_mut(full);
-            let konst = |i: usize| {
-                let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
-                C32::new(a, b, t)
-            };
-            let task = |chunk: &mut [LaneJob<'_>]| {
-                let n_groups = chunk.len() / LANES;
-                for g in 0..n_groups {
-                    // The next group's rows (elsewhere in the batch), from
-                    // their steady starts, fetched by the lanes block by
-                    // block.
-                    let next: Option<[*const f32; LANES]> =
-                        chunk.get((g + 1) * LANES..(g + 2) * LANES).map(|nx| {
-                            std::array::from_fn(|l| nx[l].row.as_ptr().wrapping_add(nx[l].k0))
-                        });
-                    let grp = &mut chunk[g * LANES..(g + 1) * LANES];
-                    // SAFETY: lane jobs exist only where AVX2 and FMA are
-                    // available (`tracks_block`).
-                    unsafe { lane_group(&konst, grp, nt, next.as_ref()) };
-                }
-                super::store_fence();
-            };
-            // Tasks of 16 groups.
-            if parallel && groups.len() > 16 * LANES {
-                groups.par_chunks_mut(16 * LANES).for_each(task);
-            } else {
-                task(groups);
-            }
-            for j in rest {
-                // SAFETY: as above.
-                unsafe { lane_loop(&konst(j.i), j) };
-            }
+    // Phases of consecutive blocks of at most PHASE_TRACKS tracks (bounds
+    // the lane jobs held at a time): the blocks, then their lane jobs.
+    let mut blocks = blocks.into_iter().peekable();
+    while blocks.peek().is_some() {
+        let mut phase: Vec<Blk<'a>> = Vec::new();
+        let mut tracks = 0;
+        while let Some(b) =
+            blocks.next_if(|b| phase.is_empty() || tracks + (b.1 - b.0) <= PHASE_TRACKS)
+        {
+            tracks += b.1 - b.0;
+            phase.push(b);
         }
+        let lanes: Vec<Vec<LaneJob<'a>>> = if parallel && phase.len() > 1 {
+            phase.into_par_iter().map(run).collect()
+        } else {
+            phase.into_iter().map(run).collect()
+        };
+        let mut lanes: Vec<LaneJob<'a>> = lanes.into_iter().flatten().collect();
+        #[cfg(target_arch = "x86_64")]
+        lane_phase(&konst, &mut lanes, nt, parallel);
+        // Lane jobs exist only where the row lanes run.
+        debug_assert!(lanes.is_empty() || cfg!(target_arch = "x86_64"));
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = lanes;
     Ok(())
+}
+
+/// Most tracks of a block of [`filter_ab_f32_tracks`], and of the blocks
+/// whose lane jobs it sorts and runs at a time (the jobs take 72 bytes
+/// per track: at most 19 MB).
+/// (Small in the unit tests, so that they run many phases.)
+const PHASE_TRACKS: usize = if cfg!(test) { 48 } else { 1 << 18 };
+
+/// The lane jobs of a phase of [`filter_ab_f32_tracks`]: sorted longest
+/// first, so that each group's lanes end close together (their tails in
+/// the column steps are short) and the few left over (run by the loop)
+/// are the shortest; groups of [`LANES`] in tasks of 16 groups on rayon's
+/// pool, each group prefetching the next group's rows.
+#[cfg(target_arch = "x86_64")]
+fn lane_phase(
+    konst: &(impl Fn(usize) -> C32 + Sync),
+    lanes: &mut [LaneJob<'_>],
+    nt: bool,
+    parallel: bool,
+) {
+    use rayon::prelude::*;
+    if lanes.is_empty() {
+        return;
+    }
+    lanes.sort_by_key(|j| std::cmp::Reverse(j.row.len() - j.k0));
+    let full = lanes.len() / LANES * LANES;
+    let (groups, rest) = lanes.split_at_mut(full);
+    let task = |chunk: &mut [LaneJob<'_>]| {
+        for g in 0..chunk.len() / LANES {
+            // The next group's rows (elsewhere in the batch), from their
+            // steady starts, fetched by the lanes block by block.
+            let next: Option<[*const f32; LANES]> = chunk
+                .get((g + 1) * LANES..(g + 2) * LANES)
+                .map(|nx| std::array::from_fn(|l| nx[l].row.as_ptr().wrapping_add(nx[l].k0)));
+            let grp = &mut chunk[g * LANES..(g + 1) * LANES];
+            // SAFETY: lane jobs exist only where AVX2 and FMA are available
+            // (`tracks_block`).
+            unsafe { lane_group(konst, grp, nt, next.as_ref()) };
+        }
+        super::store_fence();
+    };
+    if parallel && groups.len() > 16 * LANES {
+        groups.par_chunks_mut(16 * LANES).for_each(task);
+    } else {
+        task(groups);
+    }
+    for j in rest {
+        // SAFETY: as above.
+        unsafe { lane_loop(&konst(j.i), j) };
+    }
 }
 
 /// A running track of a ragged batch left by [`tracks_block`] for the
@@ -1074,8 +1100,7 @@ unsafe fn lane_group(
         xl[l] = std::mem::take(&mut j.x);
         vl[l] = std::mem::take(&mut j.v);
     }
-    // SAFETY: forwarded (AVX2 and FMA); a group of fewer than LANES jobs
-    // leaves empty lanes (no samples: `lanes_fma` steps them scalar).
+    // SAFETY: forwarded (AVX2 and FMA).
     let next = next.map_or(Next::None, Next::Rows);
     unsafe { lanes_fma(&c, &mut x, &mut v, &k0, rows, xl, vl, nt, next) };
     for (l, j) in grp.iter_mut().enumerate().take(LANES) {
@@ -1185,32 +1210,31 @@ fn tracks_block<'a, const FMA: bool>(
     nt: bool,
 ) -> Vec<LaneJob<'a>> {
     let pick = |i: usize| params[if params.len() == 1 { 0 } else { i }];
-    // Per-track output slices.
-    fn per_track<'s>(mut rest: &'s mut [f32], off: &[usize]) -> Vec<&'s mut [f32]> {
-        off.windows(2)
-            .map(|w| {
-                let (a, b) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
-                rest = b;
-                a
-            })
-            .collect()
-    }
-    let xt = per_track(xs, off);
-    let vt = per_track(vs, off);
-    let mut rt = rs.map(|r| per_track(r, off).into_iter());
     let mut lanes: Vec<LaneJob<'a>> = Vec::new();
     #[cfg(target_arch = "x86_64")]
-    let vector = FMA && super::simd::avx2_available() && rt.is_none() && z.flat.is_some();
+    let vector = FMA && super::simd::avx2_available() && rs.is_none() && z.flat.is_some();
     #[cfg(not(target_arch = "x86_64"))]
     let vector = false;
-    for (j, ((s, x), v)) in st.iter_mut().zip(xt).zip(vt).enumerate() {
+    // Each track's output slices, split off the block's as it goes.
+    let (mut x_rest, mut v_rest, mut r_rest) = (xs, vs, rs);
+    for (j, s) in st.iter_mut().enumerate() {
         let i = j0 + j;
         let (g0, len) = (off[j], off[j + 1] - off[j]);
+        let (x, xr) = std::mem::take(&mut x_rest).split_at_mut(len);
+        let (v, vr) = std::mem::take(&mut v_rest).split_at_mut(len);
+        let (r, rr) = match r_rest.take() {
+            Some(r) => {
+                let (a, b) = r.split_at_mut(len);
+                (Some(a), Some(b))
+            }
+            None => (None, None),
+        };
+        (x_rest, v_rest, r_rest) = (xr, vr, rr);
         let (a, b, t) = pick(i);
         let c = C32::new(a, b, t);
         let mut o = TrackOut {
             states: [x, v],
-            resid: rt.as_mut().and_then(|r| r.next()),
+            resid: r,
         };
         let row = z.flat.map(|f| &f[g0..g0 + len]);
         let k0 = match row {
