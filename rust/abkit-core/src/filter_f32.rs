@@ -954,26 +954,17 @@ pub fn filter_ab_f32_tracks<'a>(
         Option<&'b mut [f32]>,
     );
     let mut blocks: Vec<Blk<'a>> = Vec::new();
-    let (mut st_rest, mut x_rest, mut v_rest, mut r_rest) = (states, xs, vs, resid);
+    let (mut st_rest, mut o_rest) = (states, (xs, vs, resid));
     let mut j0 = 0;
     while j0 < n_tracks {
         let mut j1 = j0 + 1;
         while j1 < n_tracks && off[j1] - off[j0] < target && j1 - j0 < PHASE_TRACKS {
             j1 += 1;
         }
-        let len = off[j1] - off[j0];
         let (a, b) = std::mem::take(&mut st_rest).split_at_mut(j1 - j0);
-        let (xa, xb) = std::mem::take(&mut x_rest).split_at_mut(len);
-        let (va, vb) = std::mem::take(&mut v_rest).split_at_mut(len);
-        let (ra, rb) = match r_rest.take() {
-            Some(r) => {
-                let (ra, rb) = r.split_at_mut(len);
-                (Some(ra), Some(rb))
-            }
-            None => (None, None),
-        };
+        let (xa, va, ra) = split_outs(&mut o_rest, off[j1] - off[j0]);
         blocks.push((j0, j1, a, xa, va, ra));
-        (st_rest, x_rest, v_rest, r_rest) = (b, xb, vb, rb);
+        st_rest = b;
         j0 = j1;
     }
     let run = |(j0, j1, st, xs, vs, rs): Blk<'a>| -> Vec<LaneJob<'a>> {
@@ -1124,6 +1115,24 @@ unsafe fn lane_loop(c: &C32, j: &mut LaneJob<'_>) {
     run_loop::<true>(c, j.st, j.k0, row.len(), |k| row[k], &mut o);
 }
 
+/// The outputs `(x, v, residuals)` of consecutive samples of a ragged batch.
+type Outs<'a> = (&'a mut [f32], &'a mut [f32], Option<&'a mut [f32]>);
+
+/// The first `len` samples of `rest` split off it.
+fn split_outs<'a>(rest: &mut Outs<'a>, len: usize) -> Outs<'a> {
+    let (x, xr) = std::mem::take(&mut rest.0).split_at_mut(len);
+    let (v, vr) = std::mem::take(&mut rest.1).split_at_mut(len);
+    let (r, rr) = match rest.2.take() {
+        Some(r) => {
+            let (a, b) = r.split_at_mut(len);
+            (Some(a), Some(b))
+        }
+        None => (None, None),
+    };
+    *rest = (xr, vr, rr);
+    (x, v, r)
+}
+
 /// The measurements of [`filter_ab_f32_tracks`]: any strides, and the flat
 /// samples as one slice where they are contiguous.
 struct ZSource<'a, 'z> {
@@ -1216,20 +1225,11 @@ fn tracks_block<'a, const FMA: bool>(
     #[cfg(not(target_arch = "x86_64"))]
     let vector = false;
     // Each track's output slices, split off the block's as it goes.
-    let (mut x_rest, mut v_rest, mut r_rest) = (xs, vs, rs);
+    let mut o_rest = (xs, vs, rs);
     for (j, s) in st.iter_mut().enumerate() {
         let i = j0 + j;
         let (g0, len) = (off[j], off[j + 1] - off[j]);
-        let (x, xr) = std::mem::take(&mut x_rest).split_at_mut(len);
-        let (v, vr) = std::mem::take(&mut v_rest).split_at_mut(len);
-        let (r, rr) = match r_rest.take() {
-            Some(r) => {
-                let (a, b) = r.split_at_mut(len);
-                (Some(a), Some(b))
-            }
-            None => (None, None),
-        };
-        (x_rest, v_rest, r_rest) = (xr, vr, rr);
+        let (x, v, r) = split_outs(&mut o_rest, len);
         let (a, b, t) = pick(i);
         let c = C32::new(a, b, t);
         let mut o = TrackOut {
