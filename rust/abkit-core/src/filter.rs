@@ -1998,11 +1998,10 @@ pub fn filter_ab<T: IoFloat>(
     )
 }
 
-/// Checks of [`filter_ab`]'s (and [`f32arith::filter_ab_f32`]'s) arguments.
-fn check_ab<T: IoFloat>(params: &[(f64, f64, f64)], z: &Measurements<'_, T>) -> Result<()> {
-    check_params(params.len(), z)?;
-    // The core is callable directly: NaN/Inf gains or a non-positive period
-    // would give silently meaningless (and chunking-dependent) output.
+/// Alpha-beta parameters `(alpha, beta, T)`: the core is callable
+/// directly, and NaN/Inf gains or a non-positive period would give silently
+/// meaningless (and chunking-dependent) output.
+pub(crate) fn check_ab_params(params: &[(f64, f64, f64)]) -> Result<()> {
     for &(a, b, t) in params {
         for (name, v) in [("alpha", a), ("beta", b)] {
             if !v.is_finite() {
@@ -2013,6 +2012,13 @@ fn check_ab<T: IoFloat>(params: &[(f64, f64, f64)], z: &Measurements<'_, T>) -> 
             return Err(Error::domain("T", "finite and > 0", t));
         }
     }
+    Ok(())
+}
+
+/// Checks of [`filter_ab`]'s (and [`f32arith::filter_ab_f32`]'s) arguments.
+fn check_ab<T: IoFloat>(params: &[(f64, f64, f64)], z: &Measurements<'_, T>) -> Result<()> {
+    check_params(params.len(), z)?;
+    check_ab_params(params)?;
     if z.m != 1 {
         return Err(Error::Shape(format!(
             "alpha-beta needs scalar measurements, got {}",

@@ -912,16 +912,7 @@ pub fn filter_ab_f32_tracks<'a>(
             params.len()
         )));
     }
-    for &(a, b, t) in params {
-        for (name, v) in [("alpha", a), ("beta", b)] {
-            if !v.is_finite() {
-                return Err(Error::domain(name, "finite", v));
-            }
-        }
-        if !(t.is_finite() && t > 0.0) {
-            return Err(Error::domain("T", "finite and > 0", t));
-        }
-    }
+    super::check_ab_params(params)?;
     check_f32(params)?;
     if out.len() != 2 * n_total || resid.as_ref().is_some_and(|r| r.len() != n_total) {
         return Err(Error::Shape(format!(
