@@ -291,23 +291,22 @@ unsafe fn rows_fma(
     jobs: &mut [Job<'_, f32, 2>],
     nt: bool,
 ) {
-    let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
-    let mut x = [0f32; LANES];
-    let mut v = [0f32; LANES];
-    let mut rows: [&[f32]; LANES] = [&[]; LANES];
-    let mut xs: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
-    let mut vs: [&mut [f32]; LANES] = std::array::from_fn(|_| -> &mut [f32] { &mut [] });
-    let mut sts: [Option<&mut TrackState>; LANES] = std::array::from_fn(|_| None);
-    for (l, (i, st, o)) in jobs.iter_mut().enumerate().take(LANES) {
-        c[l] = konst(*i);
-        rows[l] = z.row(*i).unwrap_or(&[]);
-        x[l] = st.x[0] as f32;
-        v[l] = st.x[1] as f32;
-        let [a, b] = &mut o.states;
-        xs[l] = &mut a[..n];
-        vs[l] = &mut b[..n];
-        sts[l] = Some(st);
-    }
+    let mut lanes: Vec<LaneJob<'_>> = jobs
+        .iter_mut()
+        .take(LANES)
+        .enumerate()
+        .map(|(l, (i, st, o))| {
+            let [a, b] = &mut o.states;
+            LaneJob {
+                i: *i,
+                k0: k0[l],
+                st,
+                row: z.row(*i).unwrap_or(&[]),
+                x: &mut a[..n],
+                v: &mut b[..n],
+            }
+        })
+        .collect();
     // Rows up to NEXT_ROWS_MAX samples: the next group's rows (LANES rows
     // further on where the rows are evenly spaced; a prefetch past the batch
     // is harmless) fetched block by block at the offsets the lanes read.
@@ -317,13 +316,7 @@ unsafe fn rows_fma(
         Next::None
     };
     // SAFETY: forwarded (AVX2 and FMA).
-    unsafe { lanes_fma(&c, &mut x, &mut v, k0, rows, xs, vs, nt, next) };
-    for (l, st) in sts.into_iter().enumerate() {
-        if let Some(st) = st {
-            st.x[0] = x[l] as f64;
-            st.x[1] = v[l] as f64;
-        }
-    }
+    unsafe { lane_group(konst, &mut lanes, nt, next) };
 }
 
 /// Longest rows of a batch whose next group's rows the row lanes prefetch
@@ -927,7 +920,13 @@ pub fn filter_ab_f32_tracks<'a>(
     let flat = (z.s_sample == 1 && (z.n_rows <= 1 || z.s_row == z.row_len as isize))
         .then(|| z.data.get(z.base..z.base + n_total))
         .flatten();
-    let zs = ZSource { z, flat };
+    let rg = Ragged {
+        params,
+        init,
+        off: &off,
+        z,
+        flat,
+    };
     let nt = super::streamed::<f32>(2 * n_total * 4, true);
     let (xs, vs) = out.split_at_mut(n_total);
     let threads = if parallel {
@@ -936,15 +935,7 @@ pub fn filter_ab_f32_tracks<'a>(
         1
     };
     let target = (n_total / (4 * threads)).max(TRACKS_BLOCK_SAMPLES);
-    type Blk<'b> = (
-        usize,
-        usize,
-        &'b mut [TrackState],
-        &'b mut [f32],
-        &'b mut [f32],
-        Option<&'b mut [f32]>,
-    );
-    let mut blocks: Vec<Blk<'a>> = Vec::new();
+    let mut blocks: Vec<Block<'a>> = Vec::new();
     let (mut st_rest, mut o_rest) = (states, (xs, vs, resid));
     let mut j0 = 0;
     while j0 < n_tracks {
@@ -952,29 +943,24 @@ pub fn filter_ab_f32_tracks<'a>(
         while j1 < n_tracks && off[j1] - off[j0] < target && j1 - j0 < PHASE_TRACKS {
             j1 += 1;
         }
-        let (a, b) = std::mem::take(&mut st_rest).split_at_mut(j1 - j0);
-        let (xa, va, ra) = split_outs(&mut o_rest, off[j1] - off[j0]);
-        blocks.push((j0, j1, a, xa, va, ra));
-        st_rest = b;
+        let (st, rest) = std::mem::take(&mut st_rest).split_at_mut(j1 - j0);
+        let out = split_outs(&mut o_rest, off[j1] - off[j0]);
+        blocks.push(Block { j0, st, out });
+        st_rest = rest;
         j0 = j1;
     }
-    let run = |(j0, j1, st, xs, vs, rs): Blk<'a>| -> Vec<LaneJob<'a>> {
-        tracks_block_dispatch(params, init, &off[j0..=j1], j0, &zs, st, xs, vs, rs, nt)
-    };
-    let konst = |i: usize| {
-        let (a, b, t) = params[if params.len() == 1 { 0 } else { i }];
-        C32::new(a, b, t)
-    };
+    let run = |b: Block<'a>| tracks_block_dispatch(&rg, b);
+    let konst = |i: usize| rg.konst(i);
     // Phases of consecutive blocks of at most PHASE_TRACKS tracks (bounds
     // the lane jobs held at a time): the blocks, then their lane jobs.
     let mut blocks = blocks.into_iter().peekable();
     while blocks.peek().is_some() {
-        let mut phase: Vec<Blk<'a>> = Vec::new();
+        let mut phase: Vec<Block<'a>> = Vec::new();
         let mut tracks = 0;
         while let Some(b) =
-            blocks.next_if(|b| phase.is_empty() || tracks + (b.1 - b.0) <= PHASE_TRACKS)
+            blocks.next_if(|b| phase.is_empty() || tracks + b.st.len() <= PHASE_TRACKS)
         {
-            tracks += b.1 - b.0;
+            tracks += b.st.len();
             phase.push(b);
         }
         let lanes: Vec<Vec<LaneJob<'a>>> = if parallel && phase.len() > 1 {
@@ -1023,10 +1009,11 @@ fn lane_phase(
             let next: Option<[*const f32; LANES]> = chunk
                 .get((g + 1) * LANES..(g + 2) * LANES)
                 .map(|nx| std::array::from_fn(|l| nx[l].row.as_ptr().wrapping_add(nx[l].k0)));
+            let next = next.as_ref().map_or(Next::None, Next::Rows);
             let grp = &mut chunk[g * LANES..(g + 1) * LANES];
             // SAFETY: lane jobs exist only where AVX2 and FMA are available
             // (`tracks_block`).
-            unsafe { lane_group(konst, grp, nt, next.as_ref()) };
+            unsafe { lane_group(konst, grp, nt, next) };
         }
         super::store_fence();
     };
@@ -1041,9 +1028,9 @@ fn lane_phase(
     }
 }
 
-/// A running track of a ragged batch left by [`tracks_block`] for the
-/// vector lanes: track `i`, its steady state from sample `k0` of `row`, its
-/// outputs `x`, `v` (the whole track).
+/// A running track for the vector lanes (of a batch's group, `rows_fma`, or
+/// left by [`tracks_block`] of a ragged batch): track `i`, its steady state
+/// from sample `k0` of `row`, its outputs `x`, `v` (the whole track).
 struct LaneJob<'a> {
     i: usize,
     k0: usize,
@@ -1053,8 +1040,9 @@ struct LaneJob<'a> {
     v: &'a mut [f32],
 }
 
-/// [`LANES`] lane jobs through [`lanes_fma`], prefetching the rows `next`
-/// (the next group's) as it goes.
+/// [`LANES`] lane jobs through [`lanes_fma`] (their states taken from and
+/// returned to the jobs), prefetching the rows `next` (the next group's)
+/// as it goes.
 ///
 /// # Safety
 /// AVX2 and FMA are available.
@@ -1064,7 +1052,7 @@ unsafe fn lane_group(
     konst: &impl Fn(usize) -> C32,
     grp: &mut [LaneJob<'_>],
     nt: bool,
-    next: Option<&[*const f32; LANES]>,
+    next: Next<'_>,
 ) {
     let mut c = [C32::new(0.5, 0.1, 1.0); LANES];
     let mut x = [0f32; LANES];
@@ -1083,7 +1071,6 @@ unsafe fn lane_group(
         vl[l] = std::mem::take(&mut j.v);
     }
     // SAFETY: forwarded (AVX2 and FMA).
-    let next = next.map_or(Next::None, Next::Rows);
     unsafe { lanes_fma(&c, &mut x, &mut v, &k0, rows, xl, vl, nt, next) };
     for (l, j) in grp.iter_mut().enumerate().take(LANES) {
         j.st.x[0] = x[l] as f64;
@@ -1124,14 +1111,30 @@ fn split_outs<'a>(rest: &mut Outs<'a>, len: usize) -> Outs<'a> {
     (x, v, r)
 }
 
-/// The measurements of [`filter_ab_f32_tracks`]: any strides, and the flat
-/// samples as one slice where they are contiguous.
-struct ZSource<'a, 'z> {
-    z: &'a crate::ragged::Samples<'z, f32>,
-    flat: Option<&'z [f32]>,
+/// What every block of one [`filter_ab_f32_tracks`] call reads.
+struct Ragged<'c, 'a> {
+    params: &'c [(f64, f64, f64)],
+    init: Init,
+    /// Track offsets (flat sample indices, one more than tracks).
+    off: &'c [usize],
+    /// The measurements, any strides.
+    z: &'c crate::ragged::Samples<'a, f32>,
+    /// The flat samples as one slice where they are contiguous.
+    flat: Option<&'a [f32]>,
 }
 
-impl ZSource<'_, '_> {
+impl Ragged<'_, '_> {
+    /// Track `i`'s `(alpha, beta, T)`.
+    fn params(&self, i: usize) -> (f64, f64, f64) {
+        self.params[if self.params.len() == 1 { 0 } else { i }]
+    }
+
+    /// Track `i`'s constants.
+    fn konst(&self, i: usize) -> C32 {
+        let (a, b, t) = self.params(i);
+        C32::new(a, b, t)
+    }
+
     /// Flat sample `g`.
     #[inline(always)]
     fn at(&self, g: usize) -> f32 {
@@ -1139,118 +1142,89 @@ impl ZSource<'_, '_> {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn tracks_block_dispatch<'a>(
-    params: &[(f64, f64, f64)],
-    init: Init,
-    off: &[usize],
+/// Consecutive tracks `j0..j0 + st.len()` of a ragged batch: their states
+/// and their samples of the outputs.
+struct Block<'a> {
     j0: usize,
-    z: &ZSource<'_, 'a>,
     st: &'a mut [TrackState],
-    xs: &'a mut [f32],
-    vs: &'a mut [f32],
-    rs: Option<&'a mut [f32]>,
-    nt: bool,
-) -> Vec<LaneJob<'a>> {
+    out: Outs<'a>,
+}
+
+fn tracks_block_dispatch<'a>(r: &Ragged<'_, 'a>, b: Block<'a>) -> Vec<LaneJob<'a>> {
     #[cfg(target_arch = "x86_64")]
     {
         if super::uses_fma() {
             // SAFETY: the CPU supports FMA (checked at run time by `uses_fma`).
-            return unsafe { tracks_block_fma(params, init, off, j0, z, st, xs, vs, rs, nt) };
+            return unsafe { tracks_block_fma(r, b) };
         }
-        tracks_block::<false>(params, init, off, j0, z, st, xs, vs, rs, nt)
+        tracks_block::<false>(r, b)
     }
     #[cfg(target_arch = "aarch64")]
     {
-        tracks_block::<true>(params, init, off, j0, z, st, xs, vs, rs, nt)
+        tracks_block::<true>(r, b)
     }
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     {
-        tracks_block::<false>(params, init, off, j0, z, st, xs, vs, rs, nt)
+        tracks_block::<false>(r, b)
     }
 }
 
 #[cfg(target_arch = "x86_64")]
-#[allow(clippy::too_many_arguments)]
 #[target_feature(enable = "fma")]
-fn tracks_block_fma<'a>(
-    params: &[(f64, f64, f64)],
-    init: Init,
-    off: &[usize],
-    j0: usize,
-    z: &ZSource<'_, 'a>,
-    st: &'a mut [TrackState],
-    xs: &'a mut [f32],
-    vs: &'a mut [f32],
-    rs: Option<&'a mut [f32]>,
-    nt: bool,
-) -> Vec<LaneJob<'a>> {
-    tracks_block::<true>(params, init, off, j0, z, st, xs, vs, rs, nt)
+fn tracks_block_fma<'a>(r: &Ragged<'_, 'a>, b: Block<'a>) -> Vec<LaneJob<'a>> {
+    tracks_block::<true>(r, b)
 }
 
-/// One block of [`filter_ab_f32_tracks`]: tracks `j0..j0 + st.len()`,
-/// `off` their offsets (global sample indices, `st.len() + 1` of them),
-/// `xs`, `vs`, `rs` the block's samples of the outputs. Each track as
-/// [`group`] runs a group of one: the start-up, then (with FMA, AVX2, no
-/// residuals and a contiguous row) the split of a long run, else the loop;
-/// the loop's tracks are returned for the vector lanes (the same
-/// operations) where they run, else run here.
-#[allow(clippy::too_many_arguments)]
+/// One block of [`filter_ab_f32_tracks`]. Each track as [`group`] runs a
+/// group of one: the start-up, then (with FMA, AVX2, no residuals and a
+/// contiguous row) the split of a long run, else the loop; the loop's
+/// tracks are returned for the vector lanes (the same operations) where
+/// they run, else run here.
 #[inline(always)]
-fn tracks_block<'a, const FMA: bool>(
-    params: &[(f64, f64, f64)],
-    init: Init,
-    off: &[usize],
-    j0: usize,
-    z: &ZSource<'_, 'a>,
-    st: &'a mut [TrackState],
-    xs: &'a mut [f32],
-    vs: &'a mut [f32],
-    rs: Option<&'a mut [f32]>,
-    nt: bool,
-) -> Vec<LaneJob<'a>> {
-    let pick = |i: usize| params[if params.len() == 1 { 0 } else { i }];
+fn tracks_block<'a, const FMA: bool>(r: &Ragged<'_, 'a>, b: Block<'a>) -> Vec<LaneJob<'a>> {
+    let Block { j0, st, out } = b;
+    let init = r.init;
     let mut lanes: Vec<LaneJob<'a>> = Vec::new();
     #[cfg(target_arch = "x86_64")]
-    let vector = FMA && super::simd::avx2_available() && rs.is_none() && z.flat.is_some();
+    let vector = FMA && super::simd::avx2_available() && out.2.is_none() && r.flat.is_some();
     #[cfg(not(target_arch = "x86_64"))]
     let vector = false;
     // Each track's output slices, split off the block's as it goes.
-    let mut o_rest = (xs, vs, rs);
+    let mut o_rest = out;
     for (j, s) in st.iter_mut().enumerate() {
         let i = j0 + j;
-        let (g0, len) = (off[j], off[j + 1] - off[j]);
-        let (x, v, r) = split_outs(&mut o_rest, len);
-        let (a, b, t) = pick(i);
-        let c = C32::new(a, b, t);
+        let (g0, len) = (r.off[i], r.off[i + 1] - r.off[i]);
+        let (x, v, res) = split_outs(&mut o_rest, len);
+        let c = r.konst(i);
         let mut o = TrackOut {
             states: [x, v],
-            resid: r,
+            resid: res,
         };
-        let row = z.flat.map(|f| &f[g0..g0 + len]);
+        let row = r.flat.map(|f| &f[g0..g0 + len]);
         let k0 = match row {
-            Some(r) => start(&c, init, s, len, &|k| r[k], &mut o),
-            None => start(&c, init, s, len, &|k| z.at(g0 + k), &mut o),
+            Some(z) => start(&c, init, s, len, &|k| z[k], &mut o),
+            None => start(&c, init, s, len, &|k| r.at(g0 + k), &mut o),
         };
         if s.phase < 2.0 || k0 >= len {
             continue;
         }
         #[cfg(target_arch = "x86_64")]
         if vector {
-            if let Some(r) = row {
+            if let Some(z) = row {
+                let (a, b, _) = r.params(i);
                 if let Some(ls) = super::split_seg_len(a, b, len - k0) {
                     let nt1 = super::streamed::<f32>(2 * len * 4, true);
                     // SAFETY: AVX2 and FMA (`vector`); the row and outputs
                     // have len >= k0 + LANES * ls samples (the plan's
                     // segments).
-                    unsafe { split_fma(&c, s, k0, ls, r, &mut o, nt1) };
+                    unsafe { split_fma(&c, s, k0, ls, z, &mut o, nt1) };
                 } else {
                     let [x, v] = o.states;
                     lanes.push(LaneJob {
                         i,
                         k0,
                         st: s,
-                        row: r,
+                        row: z,
                         x,
                         v,
                     });
@@ -1259,11 +1233,10 @@ fn tracks_block<'a, const FMA: bool>(
             }
         }
         match row {
-            Some(r) => run_loop::<FMA>(&c, s, k0, len, |k| r[k], &mut o),
-            None => run_loop::<FMA>(&c, s, k0, len, |k| z.at(g0 + k), &mut o),
+            Some(z) => run_loop::<FMA>(&c, s, k0, len, |k| z[k], &mut o),
+            None => run_loop::<FMA>(&c, s, k0, len, |k| r.at(g0 + k), &mut o),
         }
     }
-    let _ = nt;
     // The split's streamed stores, before the outputs are read.
     super::store_fence();
     lanes

@@ -49,6 +49,13 @@ pub(crate) fn from_dmatrix<'py>(py: Python<'py>, m: &DMatrix<f64>) -> Bound<'py,
     out
 }
 
+/// The slice of an optional read-write borrow (e.g. of a residual buffer).
+pub(crate) fn opt_slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    a: &'a mut Option<numpy::PyReadwriteArray<'_, T, D>>,
+) -> PyResult<Option<&'a mut [T]>> {
+    Ok(a.as_mut().map(|r| r.as_slice_mut()).transpose()?)
+}
+
 /// Run `f`, turning a Rust panic (a bug in abkit, never expected) into a
 /// Python `RuntimeError` instead of letting it cross into Python.
 pub(crate) fn guard<T>(f: impl FnOnce() -> T) -> PyResult<T> {

@@ -3,7 +3,7 @@
 //! tables (see `python/abkit/frame.py`, which uses it for time-ordered
 //! frames).
 
-use crate::convert::{guard, to_pyerr};
+use crate::convert::{guard, opt_slice, to_pyerr};
 use crate::filter::{parse_init, with_threads};
 use crate::tracks::{constant_laws, parse_law, samples, Law};
 use abkit_core::feed::{filter_feed, time_order, TrackRows};
@@ -68,10 +68,7 @@ fn feed_typed<'py, T: IoFloat + Element, L: GainLaw<N, M>, const N: usize, const
         .map(|r| r.cast::<PyArray2<T>>().cloned())
         .transpose()?;
     let mut resid_rw = resid.as_ref().map(|r| r.readwrite());
-    let resid = match resid_rw.as_mut() {
-        Some(r) => Some(r.as_slice_mut()?),
-        None => None,
-    };
+    let resid = opt_slice(&mut resid_rw)?;
     let mut st_rw = state.readwrite();
     let states = states_from_f64(st_rw.as_slice_mut()?).map_err(|e| to_pyerr((0, e)))?;
     let mut ct_rw = counts.readwrite();

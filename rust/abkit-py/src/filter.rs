@@ -5,7 +5,7 @@
 //! checks) the output buffers; these functions only borrow, release the GIL
 //! and run the kernels.
 
-use crate::convert::{guard, to_pyerr};
+use crate::convert::{guard, opt_slice, to_pyerr};
 use abkit_core::filter::f32arith::filter_ab_f32;
 use abkit_core::filter::{
     filter_ab, filter_general, states_from_f64, Gains, Init, IoFloat, Measurements, Smoother,
@@ -106,6 +106,27 @@ pub(crate) fn prefault<'py>(
     Ok(())
 }
 
+/// Release the GIL and run the kernel call `f(parallel)` per `threads` (see
+/// [`with_threads`]): a panic and the kernel's error become Python
+/// exceptions.
+pub(crate) fn run_detached<R: Send>(
+    py: Python<'_>,
+    threads: Option<usize>,
+    f: impl FnOnce(bool) -> abkit_core::Result<R> + Send,
+) -> PyResult<R> {
+    py.detach(|| guard(|| with_threads(threads, f)))??
+        .map_err(|e| to_pyerr((0, e)))
+}
+
+/// Alpha-beta parameter rows `(alpha, beta, T)` of a `(P, 3)` array.
+pub(crate) fn ab_param_rows(params: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<(f64, f64, f64)>> {
+    Ok(params
+        .as_slice()?
+        .chunks_exact(3)
+        .map(|r| (r[0], r[1], r[2]))
+        .collect())
+}
+
 /// Run `f(parallel)` per the `threads` argument: None = rayon's global pool,
 /// 1 = this thread, k = a cached pool of k threads.
 pub(crate) fn with_threads<R: Send>(
@@ -148,10 +169,7 @@ fn run_typed<'py, T: IoFloat + Element>(
     let mut out_rw = bufs.out.readwrite();
     let out = out_rw.as_slice_mut()?;
     let mut resid_rw = bufs.resid.as_ref().map(|r| r.readwrite());
-    let resid = match resid_rw.as_mut() {
-        Some(r) => Some(r.as_slice_mut()?),
-        None => None,
-    };
+    let resid = opt_slice(&mut resid_rw)?;
     let mut st_rw = bufs.state.readwrite();
     let packed = st_rw.as_slice_mut()?;
     if packed.len() != meas.n_tracks * STATE_WIDTH {
@@ -160,14 +178,9 @@ fn run_typed<'py, T: IoFloat + Element>(
         ));
     }
     let states = states_from_f64(packed).map_err(|e| to_pyerr((0, e)))?;
-    let res = py.detach(|| {
-        guard(|| {
-            with_threads(threads, |par| {
-                run(&meas, states, out, resid, par).map(|()| not_finite(states, n))
-            })
-        })
-    })??;
-    res.map_err(|e| to_pyerr((0, e)))
+    run_detached(py, threads, |par| {
+        run(&meas, states, out, resid, par).map(|()| not_finite(states, n))
+    })
 }
 
 /// Whether a started track's state is not finite (a held first position,
@@ -267,11 +280,7 @@ pub(crate) fn filter_alphabeta<'py>(
 ) -> PyResult<bool> {
     let a = smoother_gains::<2>(smoother_gain.as_ref())?;
     let init = parse_init(init)?;
-    let p: Vec<(f64, f64, f64)> = params
-        .as_slice()?
-        .chunks_exact(3)
-        .map(|r| (r[0], r[1], r[2]))
-        .collect();
+    let p = ab_param_rows(&params)?;
     let is64 = dispatch_dtype(z, out, resid)?;
     if f32_arith && !is64 {
         if a.is_some() {

@@ -1,6 +1,6 @@
 //! Bindings of `abkit_core::kalman` (see `python/abkit/kalman.py`).
 
-use crate::convert::{guard, to_pyerr};
+use crate::convert::{guard, opt_slice, to_pyerr};
 use crate::filter::measurements;
 use abkit_core::filter::{IoFloat, Measurements};
 use abkit_core::kalman::{self, Model};
@@ -116,10 +116,7 @@ fn run_typed<'py, T: IoFloat + Element, const N: usize, const M: usize>(
     let mut out_rw = out.readwrite();
     let o = out_rw.as_slice_mut()?;
     let mut resid_rw = resid.map(|r| r.readwrite());
-    let r = match resid_rw.as_mut() {
-        Some(r) => Some(r.as_slice_mut()?),
-        None => None,
-    };
+    let r = opt_slice(&mut resid_rw)?;
     let mut pf_rw = p_final.readwrite();
     let pf = pf_rw.as_slice_mut()?;
     py.detach(|| guard(|| kalman::run_batch(md, x0, p0, &meas, o, r, pf, parallel)))?

@@ -6,8 +6,8 @@
 //! of all samples for a flat ragged batch, or the rectangular tracks) and
 //! `t` as `(rows, row_len)` without copying, and allocates the outputs.
 
-use crate::convert::{guard, to_pyerr};
-use crate::filter::{parse_init, with_threads};
+use crate::convert::{opt_slice, to_pyerr};
+use crate::filter::{ab_param_rows, parse_init, run_detached};
 use abkit_core::filter::f32arith::filter_ab_f32_tracks;
 use abkit_core::filter::{states_from_f64, IoFloat};
 use abkit_core::irregular::{AbBackward, Kin3Backward};
@@ -183,10 +183,7 @@ fn run_typed<
     let mut out_rw = io.out.readwrite();
     let out = out_rw.as_slice_mut()?;
     let mut resid_rw = io.resid.as_ref().map(|r| r.readwrite());
-    let resid = match resid_rw.as_mut() {
-        Some(r) => Some(r.as_slice_mut()?),
-        None => None,
-    };
+    let resid = opt_slice(&mut resid_rw)?;
     let mut st_rw = state.readwrite();
     let states = states_from_f64(st_rw.as_slice_mut()?).map_err(|e| to_pyerr((0, e)))?;
     let mut ct_rw = counts.readwrite();
@@ -199,27 +196,22 @@ fn run_typed<
     let cts: &mut [Counts] = unsafe {
         std::slice::from_raw_parts_mut(ct_flat.as_mut_ptr().cast::<Counts>(), ct_flat.len() / 2)
     };
-    let res = py.detach(|| {
-        guard(|| {
-            with_threads(threads, |par| {
-                filter_tracks(
-                    &filt,
-                    &opts,
-                    offsets,
-                    &zs,
-                    ts.as_ref(),
-                    states,
-                    out,
-                    resid,
-                    cts,
-                    par,
-                    post,
-                )
-                .map(|()| crate::filter::not_finite(states, N))
-            })
-        })
-    })??;
-    res.map_err(|e| to_pyerr((0, e)))
+    run_detached(py, threads, |par| {
+        filter_tracks(
+            &filt,
+            &opts,
+            offsets,
+            &zs,
+            ts.as_ref(),
+            states,
+            out,
+            resid,
+            cts,
+            par,
+            post,
+        )
+        .map(|()| crate::filter::not_finite(states, N))
+    })
 }
 
 pub(crate) fn constant_laws<const N: usize, const M: usize>(
@@ -530,30 +522,18 @@ pub(crate) fn filter_tracks_f32_py<'py>(
     threads: Option<usize>,
 ) -> PyResult<bool> {
     let init = parse_init(init)?;
-    let p: Vec<(f64, f64, f64)> = params
-        .as_slice()?
-        .chunks_exact(3)
-        .map(|r| (r[0], r[1], r[2]))
-        .collect();
+    let p = ab_param_rows(&params)?;
     let zv = z.as_array();
     let zs = z_samples(&zv);
     let offsets = offsets.as_slice()?;
     let mut out_rw = out.readwrite();
     let out = out_rw.as_slice_mut()?;
     let mut resid_rw = resid.as_ref().map(|r| r.readwrite());
-    let resid = match resid_rw.as_mut() {
-        Some(r) => Some(r.as_slice_mut()?),
-        None => None,
-    };
+    let resid = opt_slice(&mut resid_rw)?;
     let mut st_rw = state.readwrite();
     let states = states_from_f64(st_rw.as_slice_mut()?).map_err(|e| to_pyerr((0, e)))?;
-    let res = py.detach(|| {
-        guard(|| {
-            with_threads(threads, |par| {
-                filter_ab_f32_tracks(&p, init, offsets, &zs, states, out, resid, par)
-                    .map(|()| crate::filter::not_finite(states, 2))
-            })
-        })
-    })??;
-    res.map_err(|e| to_pyerr((0, e)))
+    run_detached(py, threads, |par| {
+        filter_ab_f32_tracks(&p, init, offsets, &zs, states, out, resid, par)
+            .map(|()| crate::filter::not_finite(states, 2))
+    })
 }

@@ -471,56 +471,54 @@ fn ragged_tracks_equal_each_track_alone() {
                 (false, true, true),
             ] {
                 // Strided: every other element of a buffer twice as long.
-                let zbuf: Vec<f32> = if strided {
-                    z.iter().flat_map(|&v| [v, -1.0]).collect()
-                } else {
-                    z.clone()
+                let spread = |v: &[f32]| -> Vec<f32> {
+                    if strided {
+                        v.iter().flat_map(|&x| [x, -1.0]).collect()
+                    } else {
+                        v.to_vec()
+                    }
                 };
-                let samples = Samples {
-                    data: &zbuf,
-                    base: 0,
-                    s_row: 0,
-                    s_sample: if strided { 2 } else { 1 },
-                    s_comp: 1,
-                    row_len: total,
-                    n_rows: 1,
-                    m: 1,
-                };
+                let stride = if strided { 2 } else { 1 };
                 // Two calls: the first half of every track, then the rest.
                 let half: Vec<usize> = lens.iter().map(|&l| l / 2).collect();
+                let part_of = |i: usize, part: usize| {
+                    if part == 0 {
+                        (0, half[i])
+                    } else {
+                        (half[i], lens[i])
+                    }
+                };
                 let mut st = vec![TrackState::default(); n_tracks];
-                let mut got = vec![vec![0f32; 2 * total]; 2];
-                let mut got_r = vec![vec![0f32; total]; 2];
-                let mut chunk_z: Vec<Vec<f32>> = vec![Vec::new(), Vec::new()];
-                for (part, cz) in chunk_z.iter_mut().enumerate() {
-                    let mut off = vec![0i64];
-                    for (i, &l) in lens.iter().enumerate() {
-                        let (a, b) = if part == 0 {
-                            (0, half[i])
-                        } else {
-                            (half[i], l)
-                        };
+                let mut got = vec![Vec::new(); 2];
+                let mut got_r = vec![Vec::new(); 2];
+                let mut chunk_off: Vec<Vec<i64>> = vec![vec![0i64]; 2];
+                for part in 0..2 {
+                    let off = &mut chunk_off[part];
+                    let mut cz: Vec<f32> = Vec::new();
+                    for i in 0..n_tracks {
+                        let (a, b) = part_of(i, part);
                         let o = offsets[i] as usize;
                         cz.extend_from_slice(&z[o + a..o + b]);
                         off.push(off.last().copied().unwrap_or(0) + (b - a) as i64);
                     }
                     let n = cz.len();
-                    let buf: Vec<f32> = if strided {
-                        cz.iter().flat_map(|&v| [v, -1.0]).collect()
-                    } else {
-                        cz.clone()
-                    };
+                    let buf = spread(&cz);
                     let smp = Samples {
                         data: &buf,
+                        base: 0,
+                        s_row: 0,
+                        s_sample: stride,
+                        s_comp: 1,
                         row_len: n,
-                        ..samples
+                        n_rows: 1,
+                        m: 1,
                     };
                     let mut out = vec![0f32; 2 * n];
                     let mut r = vec![0f32; n];
                     filter_ab_f32_tracks(
                         params,
                         init,
-                        &off,
+                        off,
                         &smp,
                         &mut st,
                         &mut out,
@@ -539,27 +537,18 @@ fn ragged_tracks_equal_each_track_alone() {
                     let mut st1 = [TrackState::default()];
                     let o = offsets[i] as usize;
                     for part in 0..2 {
-                        let (a, b) = if part == 0 {
-                            (0, half[i])
-                        } else {
-                            (half[i], lens[i])
-                        };
-                        let zt = &z[o + a..o + b];
-                        let n = zt.len();
-                        let zt2: Vec<f32> = zt.iter().flat_map(|&v| [v, -1.0]).collect();
-                        let meas = if strided {
-                            Measurements {
-                                data: &zt2,
-                                base: 0,
-                                s_track: 2 * n as isize,
-                                s_sample: 2,
-                                s_comp: 1,
-                                n_tracks: 1,
-                                n_samples: n,
-                                m: 1,
-                            }
-                        } else {
-                            Measurements::contiguous(zt, 1, n, 1).unwrap()
+                        let (a, b) = part_of(i, part);
+                        let n = b - a;
+                        let zt = spread(&z[o + a..o + b]);
+                        let meas = Measurements {
+                            data: &zt,
+                            base: 0,
+                            s_track: stride * n as isize,
+                            s_sample: stride,
+                            s_comp: 1,
+                            n_tracks: 1,
+                            n_samples: n,
+                            m: 1,
                         };
                         let mut out = vec![0f32; 2 * n];
                         let mut r = vec![0f32; n];
@@ -576,15 +565,7 @@ fn ragged_tracks_equal_each_track_alone() {
                             .unwrap();
                         }
                         // This track's place in the chunk's flat layout.
-                        let before: usize = (0..i)
-                            .map(|j| {
-                                if part == 0 {
-                                    half[j]
-                                } else {
-                                    lens[j] - half[j]
-                                }
-                            })
-                            .sum();
+                        let before = chunk_off[part][i] as usize;
                         let nc = got_r[part].len();
                         for k in 0..n {
                             let g = &got[part];
