@@ -25,6 +25,19 @@
 //! Every running sample is the scalar `ab_step` with FMA, so each track is
 //! bit-identical to the row kernel and to the scalar lanes, whatever its
 //! region, slot or neighbours.
+//!
+//! Slot phases: the slots move in lockstep, one line per block each, so the
+//! lines they read and stream at the same time keep the distances at which
+//! their regions began. On the Intel Xeon of docs/benchmarks.md (session
+//! 26) streams whose current lines all have the same parity (address bit
+//! 6) ran up to 1.3x slower than streams alternating in parity (a C copy
+//! of eight streams: 0.97-1.0 against 0.80-0.82 ns per `f64` sample), and
+//! which one a batch got depended on its region length (rows of 100: 8,200
+//! samples, an odd number of lines, fast; rows of 128, 256, 400: even,
+//! slow). With streamed outputs a slot therefore starts each region in
+//! the phase that keeps slot `l` on lines of parity `step + l` (one extra
+//! block at most, in which it stores nothing). Scheduling only: the same
+//! bits.
 
 use std::arch::x86_64::*;
 
@@ -525,6 +538,20 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         vstart,
         start,
     };
+    // Blocks run so far (every busy slot moves on by one block per block).
+    let mut step: isize = 0;
+    // Where slot `l` starts a region when outputs are streamed: at the
+    // region's first line, or a line before it (a block in which the slot
+    // stores nothing), so that at every block the slots' lines alternate in
+    // parity, slot `l`'s line being `step + l` modulo 2 (module docs,
+    // "Slot phases").
+    let phased = |p: isize, l: usize, step: isize| {
+        if nt && ((p + mis).div_euclid(sbi) - step - l as isize) & 1 != 0 {
+            p - sbi
+        } else {
+            p
+        }
+    };
     // Give slot `l` its next region (or mark it idle).
     macro_rules! refill {
         ($l:expr) => {{
@@ -534,7 +561,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 next_region += 1;
                 slots[l].busy = true;
                 slots[l].region_end = j1;
-                slots[l].pos = align_down(off[j0] as isize);
+                slots[l].pos = phased(align_down(off[j0] as isize), l, step);
                 let (sl, gx, gv) = (&mut slots[l], &mut stg_x[l], &mut stg_v[l]);
                 cx.track(sl, j0, states, xs, vs, gx, gv)?;
             } else {
@@ -658,6 +685,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             for s in slots.iter_mut() {
                 s.pos += n_fast * sbi;
             }
+            step += n_fast;
             continue;
         }
         for _ in 0..n_fast {
@@ -695,6 +723,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             }
         }
         if n_fast > 0 {
+            step += n_fast;
             continue;
         }
         // One block with events: masks (bit p: sample pos + p is stored),
@@ -810,6 +839,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             states[j].x[0] = at(&xbuf, l, p);
             states[j].x[1] = at(&vbuf, l, p);
         }
+        step += 1;
         for l in 0..LANES {
             let s = &mut slots[l];
             if s.stg != 0 {
