@@ -124,11 +124,16 @@ def test_short_rows_threads_bit_identical(threads):
     assert np.array_equal(f.run(z, threads=threads).states, f.run(z, threads=1).states, equal_nan=True)
 
 
-@pytest.mark.parametrize("dtype,n", [(np.float64, 100), (np.float32, 200)])
-def test_short_rows_large_output_streamed(dtype, n):
-    # 2 x 42,000 x n outputs >= 64 MiB: non-temporal stores of whole lines.
+@pytest.mark.parametrize(
+    "dtype,ntr,n",
+    [(np.float64, 42_000, 100), (np.float32, 42_000, 200), (np.float64, 41_999, 100), (np.float64, 21_001, 301), (np.float32, 41_999, 201)],
+)
+def test_short_rows_large_output_streamed(dtype, ntr, n):
+    # 2 x ntr x n outputs >= 64 MiB: non-temporal stores of whole lines.
+    # With ntr x n not a multiple of 8 (float64) the v row's lines lie off
+    # the x row's: the flat kernel streams v lines put together from two
+    # consecutive blocks of a slot.
     rng = np.random.default_rng(27)
-    ntr = 42_000 if dtype == np.float64 else 42_000
     z = _z(rng, (ntr, n), "random", dtype)
     f = AlphaBetaFilter(0.4, 0.1, 1.0)
     flat = f.run(z)
@@ -344,6 +349,25 @@ def test_ragged_nan_led_all_nan_and_nan_mid_track(dtype):
     for f in [AlphaBetaFilter(0.5, 0.12, 1.0), per_track]:
         for init in ["two-point", "first"]:
             _check(f, z, offsets=off, init=init)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("total_mod", [0, 3, 5])
+def test_ragged_large_output_streamed(dtype, total_mod):
+    # A ragged batch with streamed outputs (>= 8 MiB) whose total is 0, 3
+    # or 5 modulo 8 (v's lines off x's for 3 and 5): every track equals the
+    # scalar track code's (residuals on) bit for bit, states too.
+    rng = np.random.default_rng(61 + total_mod)
+    lens = rng.integers(10, 1_000, 6_000)
+    lens[-1] += (total_mod - int(lens.sum())) % 8
+    off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    z = _z(rng, (int(off[-1]),), "random", dtype)
+    f = AlphaBetaFilter(0.5, 0.15, 0.2)
+    r = f.run(z, offsets=off)
+    ref = f.run(z, offsets=off, return_residuals=True)
+    assert int(off[-1]) % 8 == total_mod
+    assert np.array_equal(r.states, ref.states, equal_nan=True)
+    assert np.array_equal(r.state._packed, ref.state._packed, equal_nan=True)
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])

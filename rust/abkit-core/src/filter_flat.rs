@@ -38,6 +38,12 @@
 //! the phase that keeps slot `l` on lines of parity `step + l` (one extra
 //! block at most, in which it stores nothing). Scheduling only: the same
 //! bits.
+//!
+//! `v` off `x`'s lines: the blocks follow the `x` output's lines; when the
+//! `v` output's lines lie elsewhere (its start is not a whole number of
+//! lines after `x`'s, as in 7 of 8 `f64` batch shapes), streamed `f64`
+//! `v` lines are put together from two consecutive blocks of a slot
+//! ([`VShift`]) instead of being written with ordinary stores.
 
 use std::arch::x86_64::*;
 
@@ -492,6 +498,8 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
     let mis = ((xs.as_ptr() as usize) % 64 / es) as isize;
     let align_down = |p: isize| p - (p + mis).rem_euclid(sbi);
     let v_aligned = (vs.as_ptr() as usize) % 64 == (xs.as_ptr() as usize) % 64;
+    let vmis = ((vs.as_ptr() as usize) % 64 / es) as isize;
+    let mut vsh = VShift::new(vs, nt, mis, vmis);
     let regs = regions(off, (total / 64).clamp(512, 8192), skip);
     let mut next_region = 0;
     let c0 = konst(0);
@@ -677,8 +685,18 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                     // SAFETY: as in the blocks below.
                     unsafe {
                         store_line(xb[l].wrapping_offset(o), xbuf[0][l], xbuf[1][l], nt);
-                        let vn = nt && v_aligned;
-                        store_line(vb[l].wrapping_offset(o), vbuf[0][l], vbuf[1][l], vn);
+                        if let Some(sh) = vsh.as_mut() {
+                            sh.put(
+                                vs.as_mut_ptr() as *mut f64,
+                                l,
+                                slots[l].pos + o,
+                                vbuf[0][l],
+                                full,
+                            );
+                        } else {
+                            let vn = nt && v_aligned;
+                            store_line(vb[l].wrapping_offset(o), vbuf[0][l], vbuf[1][l], vn);
+                        }
                     }
                 }
             }
@@ -712,12 +730,16 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 // aligned too.
                 unsafe {
                     store_line(xs.as_mut_ptr().offset(s.pos), xbuf[0][l], xbuf[1][l], nt);
-                    store_line(
-                        vs.as_mut_ptr().offset(s.pos),
-                        vbuf[0][l],
-                        vbuf[1][l],
-                        nt && v_aligned,
-                    );
+                    if let Some(sh) = vsh.as_mut() {
+                        sh.put(vs.as_mut_ptr() as *mut f64, l, s.pos, vbuf[0][l], full);
+                    } else {
+                        store_line(
+                            vs.as_mut_ptr().offset(s.pos),
+                            vbuf[0][l],
+                            vbuf[1][l],
+                            nt && v_aligned,
+                        );
+                    }
                 }
                 s.pos += sbi;
             }
@@ -794,7 +816,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         for l in 0..LANES {
             let s = &slots[l];
             let m = masks[l];
-            if !s.busy || m == 0 {
+            if !s.busy || (m == 0 && vsh.is_none()) {
                 continue;
             }
             let sbits = s.stg as u32 & full;
@@ -804,23 +826,35 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
             }
             let pos = s.pos;
             let inside = pos >= 0 && pos + sbi <= len;
+            // `v` whole lines across blocks (the samples kept back from the
+            // slot's previous block, also when this block stores nothing).
+            let vsep = if let Some(sh) = vsh.as_mut() {
+                // SAFETY: `v` has `len` samples; AVX-512F.
+                unsafe { sh.put(vs.as_mut_ptr() as *mut f64, l, pos, vbuf[0][l], m) };
+                true
+            } else {
+                false
+            };
+            if m == 0 {
+                continue;
+            }
             if m == full && inside {
                 // SAFETY: as in the fast blocks.
                 unsafe {
                     store_line(xs.as_mut_ptr().offset(pos), xbuf[0][l], xbuf[1][l], nt);
-                    store_line(
-                        vs.as_mut_ptr().offset(pos),
-                        vbuf[0][l],
-                        vbuf[1][l],
-                        nt && v_aligned,
-                    );
+                    if !vsep {
+                        let vn = nt && v_aligned;
+                        store_line(vs.as_mut_ptr().offset(pos), vbuf[0][l], vbuf[1][l], vn);
+                    }
                 }
             } else if inside {
                 // SAFETY: the line is inside the outputs; masked-off samples
                 // are not written.
                 unsafe {
                     store_masked(xs.as_mut_ptr().offset(pos), xbuf[0][l], xbuf[1][l], m);
-                    store_masked(vs.as_mut_ptr().offset(pos), vbuf[0][l], vbuf[1][l], m);
+                    if !vsep {
+                        store_masked(vs.as_mut_ptr().offset(pos), vbuf[0][l], vbuf[1][l], m);
+                    }
                 }
             } else {
                 let xr = rows_of(&xbuf, l);
@@ -829,7 +863,9 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                     if m & (1 << p) != 0 {
                         let g = (pos + p as isize) as usize;
                         xs[g] = T::from_f64(xr[p]);
-                        vs[g] = T::from_f64(vr[p]);
+                        if !vsep {
+                            vs[g] = T::from_f64(vr[p]);
+                        }
                     }
                 }
             }
@@ -850,6 +886,10 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
                 }
             }
             if done[l] {
+                if let Some(sh) = vsh.as_mut() {
+                    // SAFETY: `v` has `len` samples.
+                    unsafe { sh.flush(vs.as_mut_ptr() as *mut f64, l, slots[l].pos) };
+                }
                 refill!(l);
             } else if slots[l].busy {
                 slots[l].pos += sbi;
@@ -860,6 +900,129 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         _mm_sfence();
     }
     Ok(())
+}
+
+/// `v` stored in whole streamed lines when its lines do not lie at `x`'s
+/// line offsets (`f64`; the blocks follow `x`'s lines): `v`'s lines begin
+/// at block sample `e`, so each slot's `v` line is the last `8 - e`
+/// samples of its previous block and the first `e` of the current one
+/// (one permute). Before, such `v` rows were stored with ordinary stores,
+/// each line read from memory first (docs/benchmarks.md, session 26).
+struct VShift {
+    /// `vs`'s length (`vs` itself is passed to each call).
+    len: isize,
+    e: isize,
+    /// `permutex2var` indices: `prev[e..8]` then `cur[0..e]`.
+    idx: __m512i,
+    /// Each slot's previous block of `v` and its store mask.
+    prev: [__m512d; LANES],
+    pm: [u32; LANES],
+}
+
+impl VShift {
+    /// For `f64` outputs streamed with `v`'s lines off `x`'s (`mis`, `vmis`:
+    /// their first samples' offsets in their lines).
+    #[target_feature(enable = "avx512f")]
+    fn new<T: 'static>(vs: &mut [T], nt: bool, mis: isize, vmis: isize) -> Option<VShift> {
+        let e = (mis - vmis).rem_euclid(8);
+        if !(nt && is_f64::<T>() && e != 0 && (vs.as_ptr() as usize).is_multiple_of(8)) {
+            return None;
+        }
+        Some(VShift {
+            len: vs.len() as isize,
+            e,
+            idx: {
+                let idx: [i64; 8] = std::array::from_fn(|i| {
+                    ((i as isize + e) % 8 + 8 * isize::from(i as isize >= 8 - e)) as i64
+                });
+                // SAFETY: eight i64 read from an array of eight.
+                unsafe { _mm512_loadu_si512(idx.as_ptr() as *const _) }
+            },
+            prev: [_mm512_setzero_pd(); LANES],
+            pm: [0; LANES],
+        })
+    }
+
+    /// Samples `at..at + 8` of `v` (a whole line) of which those of mask `m`
+    /// are stored: streamed if all, else masked (element by element at the
+    /// ends of `v`).
+    ///
+    /// # Safety
+    /// `v` points to `self.len` writable `f64`; AVX-512F.
+    #[inline(always)]
+    unsafe fn line(&self, v: *mut f64, at: isize, a: __m512d, m: u32) {
+        // SAFETY: inside `v` (checked); the line is 64-byte aligned (`at`
+        // is a start of a `v` line).
+        unsafe {
+            if at >= 0 && at + 8 <= self.len {
+                let p = v.offset(at);
+                if m == 0xff {
+                    _mm512_stream_pd(p, a);
+                } else {
+                    _mm512_mask_storeu_pd(p, m as u8, a);
+                }
+            } else {
+                let mut r = [0.0; 8];
+                _mm512_storeu_pd(r.as_mut_ptr(), a);
+                for (i, &x) in r.iter().enumerate() {
+                    let g = at + i as isize;
+                    if m & (1 << i) != 0 && g >= 0 && g < self.len {
+                        *v.offset(g) = x;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Slot `l`'s block at `pos` has the `v` estimates `cur`, those of mask
+    /// `m` to be stored: store the `v` line that ends at `pos + e` and keep
+    /// the rest for the slot's next block.
+    ///
+    /// # Safety
+    /// As [`Self::line`]; AVX-512F.
+    #[inline(always)]
+    unsafe fn put(&mut self, v: *mut f64, l: usize, pos: isize, cur: __m512d, m: u32) {
+        let e = self.e;
+        let lm = ((self.pm[l] >> e) | ((m & ((1 << e) - 1)) << (8 - e))) & 0xff;
+        if lm != 0 {
+            // SAFETY: forwarded.
+            unsafe {
+                let a = _mm512_permutex2var_pd(self.prev[l], self.idx, cur);
+                self.line(v, pos - 8 + e, a, lm);
+            }
+        }
+        self.prev[l] = cur;
+        self.pm[l] = m;
+    }
+
+    /// Slot `l`'s region ended in its block at `pos`: store the samples
+    /// kept back.
+    ///
+    /// # Safety
+    /// As [`Self::line`].
+    #[inline(always)]
+    unsafe fn flush(&mut self, v: *mut f64, l: usize, pos: isize) {
+        let rest = self.pm[l] & !((1u32 << self.e) - 1) & 0xff;
+        if rest != 0 {
+            // SAFETY: forwarded; the block's samples start at `pos` (not a
+            // line start: stored masked or element by element).
+            unsafe {
+                if pos >= 0 && pos + 8 <= self.len {
+                    _mm512_mask_storeu_pd(v.offset(pos), rest as u8, self.prev[l]);
+                } else {
+                    let mut r = [0.0; 8];
+                    _mm512_storeu_pd(r.as_mut_ptr(), self.prev[l]);
+                    for (i, &x) in r.iter().enumerate() {
+                        let g = pos + i as isize;
+                        if rest & (1 << i) != 0 && g >= 0 && g < self.len {
+                            *v.offset(g) = x;
+                        }
+                    }
+                }
+            }
+        }
+        self.pm[l] = 0;
+    }
 }
 
 /// The running state and constants of the eight slots.

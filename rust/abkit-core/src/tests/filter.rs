@@ -501,6 +501,8 @@ fn absurd_strides_are_an_error_not_an_overflow() {
 /// NaN runs, per-lane gains, temporal and streamed stores. NaN in most
 /// blocks of samples, or (`sparse`) in a few runs only, so that blocks
 /// without NaN (the steps without masks) and blocks with NaN alternate.
+/// The `v` rows lie 0..7 elements off the `x` rows' offsets (streamed `v`
+/// lines then cross the blocks).
 #[cfg(target_arch = "x86_64")]
 fn lanes_case<T: IoFloat>(avx512: bool, sparse: bool, off: usize, k0: usize, n: usize, nt: bool) {
     let lanes = AB_LANES;
@@ -538,21 +540,24 @@ fn lanes_case<T: IoFloat>(avx512: bool, sparse: bool, off: usize, k0: usize, n: 
             // lane l starts at element off + l * (stride + l): every alignment
             let starts: [usize; AB_LANES] = std::array::from_fn(|l| off + l * stride + l % 3);
             let zr: [&[T]; AB_LANES] = std::array::from_fn(|l| &z[starts[l]..starts[l] + n]);
+            // v rows 0..7 elements further (within the rows' gaps of 19).
+            let vsh = |l: usize| (3 * l + off) % 8;
             let mut xr = xo.as_mut_slice();
             let mut vr = vo.as_mut_slice();
             let mut xs: [&mut [T]; AB_LANES] = std::array::from_fn(|_| -> &mut [T] { &mut [] });
             let mut vs: [&mut [T]; AB_LANES] = std::array::from_fn(|_| -> &mut [T] { &mut [] });
-            let mut used = 0;
+            let (mut used, mut vused) = (0, 0);
             for l in 0..AB_LANES {
                 let (_, rx) = std::mem::take(&mut xr).split_at_mut(starts[l] - used);
                 let (a, rx) = rx.split_at_mut(n);
-                let (_, rv) = std::mem::take(&mut vr).split_at_mut(starts[l] - used);
+                let (_, rv) = std::mem::take(&mut vr).split_at_mut(starts[l] + vsh(l) - vused);
                 let (b, rv) = rv.split_at_mut(n);
                 xs[l] = a;
                 vs[l] = b;
                 xr = rx;
                 vr = rv;
                 used = starts[l] + n;
+                vused = starts[l] + vsh(l) + n;
             }
             if vector && avx512 {
                 // SAFETY: checked by the caller (avx512f and fma).
