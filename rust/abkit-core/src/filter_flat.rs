@@ -49,7 +49,7 @@ use std::arch::x86_64::*;
 
 use super::simd::{
     clean_step8, clean_steps8, is_f64, load8, masked_step8, masked_steps8, narrow_steps, no_nan16,
-    no_nan8, store_line, store_ps, transpose8, transpose8x16, untranspose8x16, widen_step,
+    no_nan8, store_line, store_ps, transpose8, transpose8x16, untranspose8x16, widen_step, VLines,
 };
 use super::{AbConst, Init, IoFloat, TrackState};
 use crate::Result;
@@ -931,13 +931,7 @@ impl VShift {
         Some(VShift {
             len: vs.len() as isize,
             e,
-            idx: {
-                let idx: [i64; 8] = std::array::from_fn(|i| {
-                    ((i as isize + e) % 8 + 8 * isize::from(i as isize >= 8 - e)) as i64
-                });
-                // SAFETY: eight i64 read from an array of eight.
-                unsafe { _mm512_loadu_si512(idx.as_ptr() as *const _) }
-            },
+            idx: VLines::idx(e as usize),
             prev: [_mm512_setzero_pd(); LANES],
             pm: [0; LANES],
         })

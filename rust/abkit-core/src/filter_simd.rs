@@ -431,12 +431,37 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
         let addr = xs[l].as_ptr() as usize + k0 * std::mem::size_of::<T>();
         k[l] = k0 + ((bytes - addr % bytes) % bytes) / std::mem::size_of::<T>();
     }
+    // Streamed: the lanes' x lines alternate in parity from lane to lane
+    // (a lane off the pattern takes one more line of head steps). On the
+    // Intel Xeon of docs/benchmarks.md (session 26) streams whose lines
+    // all have the same parity ran up to 1.3x slower: rows of 10,000
+    // float64 (1,250 lines, every lane on the same parity) 1.19 -> 0.87 ns
+    // per sample. `fits` leaves room: k[l] + sb <= k0 + 31 < n.
+    if nt {
+        let line =
+            |l: usize, kl: usize| (xs[l].as_ptr() as usize + kl * std::mem::size_of::<T>()) / 64;
+        let l0 = line(0, k[0]);
+        for l in 1..AB_LANES {
+            if (line(l, k[l]) + l - l0) % 2 != 0 {
+                k[l] += sb;
+            }
+        }
+    }
     scalar_steps(c, &mut x, &mut v, &z, &mut xs, &mut vs, [k0; AB_LANES], k);
     let aligned =
         |p: *const T, at: usize| (p as usize + at * std::mem::size_of::<T>()).is_multiple_of(bytes);
     let x_aligned: [bool; AB_LANES] = std::array::from_fn(|l| aligned(xs[l].as_ptr(), k[l]));
     let v_aligned: [bool; AB_LANES] = std::array::from_fn(|l| aligned(vs[l].as_ptr(), k[l]));
     let blocks = k.iter().map(|&kl| (n - kl) / sb).min().unwrap_or(0);
+    // Streamed f64 rows whose v lines are not at x's line offsets: v in
+    // whole lines across blocks (`VLines`).
+    let mut vl8: [Option<VLines>; AB_LANES] = std::array::from_fn(|l| {
+        if nt && is_f64::<T>() && blocks > 0 && !v_aligned[l] {
+            VLines::new(vs[l].as_ptr() as usize + k[l] * 8)
+        } else {
+            None
+        }
+    });
     let lane = |f: fn(&AbConst) -> f64| {
         _mm512_set_pd(
             f(&c[7]),
@@ -547,25 +572,43 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
             transpose8(xo);
             transpose8(vo);
         }
+        // The x lines of all lanes, then their v lines (in lane order, so
+        // each stream's parities alternate as the lanes' do).
         for l in 0..AB_LANES {
             let at = k[l] + b * sb;
-            // SAFETY: at + sb <= n = xs[l].len() = vs[l].len(); x stores are
-            // line-aligned by the head (and v stores are streamed only if
-            // aligned).
+            // SAFETY: at + sb <= n = xs[l].len(); x stores are line-aligned
+            // by the head.
             unsafe {
                 store_line(
                     xs[l].as_mut_ptr().add(at),
                     xbuf[0][l],
                     xbuf[1][l],
                     nt && x_aligned[l],
-                );
-                store_line(
-                    vs[l].as_mut_ptr().add(at),
-                    vbuf[0][l],
-                    vbuf[1][l],
-                    nt && v_aligned[l],
-                );
+                )
+            };
+        }
+        for l in 0..AB_LANES {
+            let at = k[l] + b * sb;
+            // SAFETY: at + sb <= n = vs[l].len(); v stores are streamed only
+            // if aligned, else (streamed f64) whole lines across blocks.
+            unsafe {
+                if let Some(vl) = vl8[l].as_mut() {
+                    vl.put(vs[l].as_mut_ptr().add(at) as *mut f64, b == 0, vbuf[0][l]);
+                } else {
+                    store_line(
+                        vs[l].as_mut_ptr().add(at),
+                        vbuf[0][l],
+                        vbuf[1][l],
+                        nt && v_aligned[l],
+                    );
+                }
             }
+        }
+    }
+    for l in 0..AB_LANES {
+        if let Some(vl) = vl8[l].as_ref() {
+            // SAFETY: the last block's samples, inside vs[l] (blocks > 0).
+            unsafe { vl.flush(vs[l].as_mut_ptr().add(k[l] + (blocks - 1) * sb) as *mut f64) };
         }
     }
     if nt {
@@ -590,6 +633,77 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     );
     *x_out = x;
     *v_out = v;
+}
+
+/// One lane's `f64` `v` row streamed in whole lines when its lines are not
+/// at the `x` row's line offsets (the blocks follow `x`'s lines): `v`'s
+/// lines begin at block sample `e`, so each line is the last `8 - e`
+/// samples of the previous block and the first `e` of the current one (one
+/// permute). Ordinary stores of those rows read each line from memory
+/// first: rows of 10,001 samples 1.10-1.13 against 0.85 ns per sample with
+/// aligned rows (docs/benchmarks.md, session 26).
+pub(super) struct VLines {
+    e: usize,
+    idx: __m512i,
+    prev: __m512d,
+}
+
+impl VLines {
+    /// For a `v` row whose first block starts at address `addr` (8-byte
+    /// aligned; `None` if it is not, or if the row's lines start with the
+    /// block).
+    #[target_feature(enable = "avx512f")]
+    pub(super) fn new(addr: usize) -> Option<VLines> {
+        if !addr.is_multiple_of(8) || addr.is_multiple_of(64) {
+            return None;
+        }
+        let e = (64 - addr % 64) / 8;
+        Some(VLines {
+            e,
+            idx: Self::idx(e),
+            prev: _mm512_setzero_pd(),
+        })
+    }
+
+    /// `_mm512_permutex2var_pd` indices that take elements `e..8` of the
+    /// first vector, then `0..e` of the second (`0 < e < 8`).
+    #[target_feature(enable = "avx512f")]
+    pub(super) fn idx(e: usize) -> __m512i {
+        let idx: [i64; 8] = std::array::from_fn(|i| (i + e) as i64);
+        // SAFETY: eight i64 read from an array of eight.
+        unsafe { _mm512_loadu_si512(idx.as_ptr() as *const _) }
+    }
+
+    /// The block at `p` (8 samples) has the estimates `cur`: store the line
+    /// ending at `p + e` (the first block: only its samples before `e`),
+    /// keep the rest.
+    ///
+    /// # Safety
+    /// `p..p + 8` is writable (and, but for the first block, so is
+    /// `p - 8..p`); AVX-512F.
+    #[inline(always)]
+    pub(super) unsafe fn put(&mut self, p: *mut f64, first: bool, cur: __m512d) {
+        // SAFETY: forwarded; `p + e - 8` is a line start.
+        unsafe {
+            if first {
+                _mm512_mask_storeu_pd(p, ((1u32 << self.e) - 1) as u8, cur);
+            } else {
+                let line = _mm512_permutex2var_pd(self.prev, self.idx, cur);
+                _mm512_stream_pd(p.add(self.e).sub(8), line);
+            }
+        }
+        self.prev = cur;
+    }
+
+    /// The last block (at `p`): store its samples kept back.
+    ///
+    /// # Safety
+    /// `p..p + 8` is writable; AVX-512F.
+    #[inline(always)]
+    pub(super) unsafe fn flush(&self, p: *mut f64) {
+        // SAFETY: forwarded.
+        unsafe { _mm512_mask_storeu_pd(p, !((1u32 << self.e) - 1) as u8, self.prev) };
+    }
 }
 
 /// Scalar steps of every lane `l` over samples `from[l]..to[l]`, the lanes
