@@ -441,3 +441,19 @@ def test_general_default_route_equals_scalar_bitwise(shape, dtype):
     scalar = f.run(z, return_residuals=True)
     assert np.array_equal(lanes.states, scalar.states, equal_nan=True)
     assert np.array_equal(lanes.state.x, scalar.state.x, equal_nan=True)
+
+
+@pytest.mark.parametrize("ntr,n", [(64, 8192), (40, 10_001), (200, 2048)])
+def test_general_lanes_streamed_f64_lane_phases(ntr, n):
+    # float64 3-state outputs of 12-14 MB (streamed): rows of 8,192 or 2,048
+    # samples put every lane's lines on one parity, so lanes take one more
+    # masked head block (lane phases); rows of 10,001 mostly so. Every track
+    # equals the scalar per-track loop (residuals requested) bit for bit,
+    # final states too.
+    rng = np.random.default_rng(ntr + n)
+    z = fr.with_nans(rng, fr.kinematic_z(rng, ntr, n, 0.5), "random")
+    f = AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5)
+    lanes = f.run(z, threads=1)
+    scalar = f.run(z, return_residuals=True)
+    assert np.array_equal(lanes.states, scalar.states, equal_nan=True)
+    assert np.array_equal(lanes.state.x, scalar.state.x, equal_nan=True)

@@ -442,7 +442,7 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
             |l: usize, kl: usize| (xs[l].as_ptr() as usize + kl * std::mem::size_of::<T>()) / 64;
         let l0 = line(0, k[0]);
         for l in 1..AB_LANES {
-            if (line(l, k[l]) + l - l0) % 2 != 0 {
+            if (line(l, k[l]) ^ l0 ^ l) & 1 != 0 {
                 k[l] += sb;
             }
         }
@@ -640,8 +640,9 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
 /// lines begin at block sample `e`, so each line is the last `8 - e`
 /// samples of the previous block and the first `e` of the current one (one
 /// permute). Ordinary stores of those rows read each line from memory
-/// first: rows of 10,001 samples 1.10-1.13 against 0.85 ns per sample with
-/// aligned rows (docs/benchmarks.md, session 26).
+/// first: 999 x 10,001 `f64` 1.16 ns per sample with them, 0.86-0.92 with
+/// these lines (and the row lanes' store order; docs/benchmarks.md,
+/// session 26).
 pub(super) struct VLines {
     e: usize,
     idx: __m512i,
@@ -1382,6 +1383,25 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
     for l in 0..L {
         let addr = group[l].2.states[0].as_ptr() as usize + k0 * size;
         k[l] = k0 + ((64 - addr % 64) % 64) / size;
+    }
+    // Streamed: when nearly all neighbouring lanes' x lines share their parity
+    // (rows of an even number of lines), the lanes off the alternating
+    // pattern take one more masked head block (see `ab_lanes8`). genbench
+    // float64 (ns per sample): 1,000 x 10,000 2.18 -> 1.52, 4,882 x 2,048
+    // 2.20 -> 1.74, 19,531 x 512 2.60 -> 2.29; rows of 100 or 500 (lines
+    // already mixed) lost 7-20 % to it, so they keep their heads; float32
+    // (bound by its float64 arithmetic) gained nothing.
+    if nt && is_f64::<T>() {
+        let line: [usize; L] =
+            std::array::from_fn(|l| (group[l].2.states[0].as_ptr() as usize + k[l] * size) / 64);
+        let same = (1..L).filter(|&l| (line[l] ^ line[l - 1]) & 1 == 0).count();
+        if same >= 6 {
+            for l in 1..L {
+                if (line[l] ^ line[0] ^ l) & 1 != 0 {
+                    k[l] += sb;
+                }
+            }
+        }
     }
     let blocks = k
         .iter()
