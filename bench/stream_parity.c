@@ -2,8 +2,9 @@
  * do (docs/benchmarks.md, session 26): segment k of 10^7 float64 samples
  * copied one line per step (a 64-byte load of z, streamed stores of x and
  * 2z), the segments' starting lines shifted so that the parities of their
- * current lines follow a pattern. Without AVX-512 it does not build
- * (-march=native on an AVX2 CPU: write the AVX2 variant first).
+ * current lines follow a pattern. With AVX-512 a line is one 64-byte load
+ * and store; on AVX2-only CPUs (built with -march=native there) two 32-byte
+ * halves, as the AVX2 kernels store them.
  *
  *   gcc -O3 -march=native bench/stream_parity.c -o /tmp/stream_parity
  *   /tmp/stream_parity
@@ -21,9 +22,17 @@ __attribute__((noinline)) static void walk(const double*z,double*x,double*v,long
   for(long i=0;i<len;i+=8){
     for(int k=0;k<8;k++){
       long o=st[k]+i;
+#ifdef __AVX512F__
       __m512d a=_mm512_loadu_pd(z+o);
       _mm512_stream_pd(x+o,a);
       _mm512_stream_pd(v+o,_mm512_add_pd(a,a));
+#else
+      __m256d a=_mm256_loadu_pd(z+o), b=_mm256_loadu_pd(z+o+4);
+      _mm256_stream_pd(x+o,a);
+      _mm256_stream_pd(x+o+4,b);
+      _mm256_stream_pd(v+o,_mm256_add_pd(a,a));
+      _mm256_stream_pd(v+o+4,_mm256_add_pd(b,b));
+#endif
     }
   }
   _mm_sfence();
