@@ -937,24 +937,17 @@ impl VShift {
         })
     }
 
-    /// Samples `at..at + 8` of `v` (a whole line) of which those of mask `m`
-    /// are stored: streamed if all, else masked (element by element at the
-    /// ends of `v`).
+    /// Samples `at..at + 8` of `v` of which those of mask `m` are stored:
+    /// masked, element by element where they reach past an end of `v`.
     ///
     /// # Safety
     /// `v` points to `self.len` writable `f64`; AVX-512F.
     #[inline(always)]
-    unsafe fn line(&self, v: *mut f64, at: isize, a: __m512d, m: u32) {
-        // SAFETY: inside `v` (checked); the line is 64-byte aligned (`at`
-        // is a start of a `v` line).
+    unsafe fn masked(&self, v: *mut f64, at: isize, a: __m512d, m: u32) {
+        // SAFETY: inside `v` (checked), masked-off elements untouched.
         unsafe {
             if at >= 0 && at + 8 <= self.len {
-                let p = v.offset(at);
-                if m == 0xff {
-                    _mm512_stream_pd(p, a);
-                } else {
-                    _mm512_mask_storeu_pd(p, m as u8, a);
-                }
+                _mm512_mask_storeu_pd(v.offset(at), m as u8, a);
             } else {
                 let mut r = [0.0; 8];
                 _mm512_storeu_pd(r.as_mut_ptr(), a);
@@ -964,6 +957,23 @@ impl VShift {
                         *v.offset(g) = x;
                     }
                 }
+            }
+        }
+    }
+
+    /// The `v` line at `at` (a line start) of which the samples of mask `m`
+    /// are stored: streamed if all and inside `v`, else [`Self::masked`].
+    ///
+    /// # Safety
+    /// As [`Self::masked`].
+    #[inline(always)]
+    unsafe fn line(&self, v: *mut f64, at: isize, a: __m512d, m: u32) {
+        // SAFETY: inside `v` (checked); `at` is 64-byte aligned.
+        unsafe {
+            if m == 0xff && at >= 0 && at + 8 <= self.len {
+                _mm512_stream_pd(v.offset(at), a);
+            } else {
+                self.masked(v, at, a, m);
             }
         }
     }
@@ -998,22 +1008,9 @@ impl VShift {
     unsafe fn flush(&mut self, v: *mut f64, l: usize, pos: isize) {
         let rest = self.pm[l] & !((1u32 << self.e) - 1) & 0xff;
         if rest != 0 {
-            // SAFETY: forwarded; the block's samples start at `pos` (not a
-            // line start: stored masked or element by element).
-            unsafe {
-                if pos >= 0 && pos + 8 <= self.len {
-                    _mm512_mask_storeu_pd(v.offset(pos), rest as u8, self.prev[l]);
-                } else {
-                    let mut r = [0.0; 8];
-                    _mm512_storeu_pd(r.as_mut_ptr(), self.prev[l]);
-                    for (i, &x) in r.iter().enumerate() {
-                        let g = pos + i as isize;
-                        if rest & (1 << i) != 0 && g >= 0 && g < self.len {
-                            *v.offset(g) = x;
-                        }
-                    }
-                }
-            }
+            // SAFETY: forwarded (the block's samples start at `pos`, not a
+            // line start).
+            unsafe { self.masked(v, pos, self.prev[l], rest) };
         }
         self.pm[l] = 0;
     }
