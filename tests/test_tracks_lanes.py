@@ -273,6 +273,20 @@ def test_streaming_chunks_equal_one_call(kind):
     assert np.array_equal(st.t_last, full.state.t_last, equal_nan=True)
 
 
+def _on_off(code, tmp_path, on_env):
+    """Run `code` (writes its arrays to argv[1]/argv[2].npz) in two child
+    processes: with `on_env` (vector lanes) and with ABKIT_DISABLE_SIMD=1
+    (scalar lanes); the two saved archives."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    for tag, env in (("on", on_env), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
+        e = dict(os.environ)
+        e.pop("ABKIT_DISABLE_SIMD", None)
+        e.pop("ABKIT_TRACKS_AVX512", None)
+        e.update(env)
+        subprocess.run([sys.executable, "-c", code, str(tmp_path), tag, here], check=True, env=e, cwd=here)
+    return np.load(tmp_path / "on.npz"), np.load(tmp_path / "off.npz")
+
+
 def test_vector_lanes_equal_scalar_lanes_in_another_process(tmp_path):
     # Every case in two processes: vector lanes on (if the CPU has them) and
     # ABKIT_DISABLE_SIMD=1 (scalar lanes only): the same bits.
@@ -301,18 +315,10 @@ for kind in ("design", "fixed"):
             out[f"{kind}_{np.dtype(dtype).name}_{case}_rect"] = rect.states
 np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **out)
 """
-    here = os.path.dirname(os.path.abspath(__file__))
     # "on" opts in to the 8-lane AVX-512 build where the CPU has it (the
     # default there is the verified 4-lane AVX2 one), so that an AVX-512
     # machine checks it
-    for tag, env in (("on", {"ABKIT_TRACKS_AVX512": "1"}), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
-        e = dict(os.environ)
-        e.pop("ABKIT_DISABLE_SIMD", None)
-        e.pop("ABKIT_TRACKS_AVX512", None)
-        e.update(env)
-        subprocess.run([sys.executable, "-c", code, str(tmp_path), tag, here], check=True, env=e, cwd=here)
-    on = np.load(tmp_path / "on.npz")
-    off = np.load(tmp_path / "off.npz")
+    on, off = _on_off(code, tmp_path, {"ABKIT_TRACKS_AVX512": "1"})
     assert sorted(on.files) == sorted(off.files) and len(on.files) > 40
     for k in on.files:
         assert on[k].dtype == off[k].dtype, k
@@ -339,3 +345,38 @@ def test_design_lanes_at_extreme_tracking_index(sw, T, lo, hi):
         one = f.run(z[a:b], t=t[a:b], return_residuals=True)
         assert np.array_equal(r.states[:, a:b], one.states, equal_nan=True), i
         assert np.array_equal(r.residuals[a:b], one.residuals, equal_nan=True), i
+
+
+def test_fixed_gain_lanes_streamed_lines_equal_scalar_lanes(tmp_path):
+    """Outputs of 8 MiB and more: the four AVX2 lanes with fixed gains write
+    their float64 rows in whole streamed lines, each 64-byte line put
+    together from two blocks (rows at every offset modulo 4 and 8 samples,
+    the first and last part lines with ordinary stores). The same bits as
+    the scalar lanes (ABKIT_DISABLE_SIMD=1, another process), ragged and
+    rectangular, with NaN and gaps (blocks the vector lanes stop at)."""
+    code = r"""
+import sys, numpy as np
+sys.path.insert(0, sys.argv[3])
+from test_tracks_lanes import _data, _filter
+out = {}
+f = _filter("fixed")
+rng = np.random.default_rng(7)
+lens = [int(v) for v in rng.integers(1, 9000, 150)] + [0, 1, 2, 3, 5, 8, 13, 64, 65, 1001]
+for case, kw, gaps in (("a", dict(), 0.0), ("b", dict(max_gap=20.0), 0.002)):
+    z, t, off = _data(31, lens, gaps=gaps)
+    z[rng.random(z.size) < 0.002] = np.nan
+    assert 16 * z.size >= 8 << 20
+    r = f.run(z, t=t, offsets=off, **kw)
+    out[case + "_s"] = r.states
+    out[case + "_x"] = r.state.x
+    zr = z[: 600 * 1001].reshape(600, 1001)
+    tr = np.cumsum(np.random.default_rng(3).uniform(0.05, 0.15, (600, 1001)), axis=1)
+    rect = f.run(zr, t=tr, **kw)
+    out[case + "_rect"] = rect.states
+    out[case + "_rect_x"] = rect.state.x
+np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **out)
+"""
+    on, off = _on_off(code, tmp_path, {})
+    assert sorted(on.files) == sorted(off.files) and len(on.files) == 8
+    for k in on.files:
+        assert np.array_equal(on[k], off[k], equal_nan=True), k

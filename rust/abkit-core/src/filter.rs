@@ -602,7 +602,7 @@ fn ab_lanes_entry<T: IoFloat, const FMA: bool>(
 /// the vector lanes (which write whole 64-byte lines): only outputs much
 /// bigger than the caches. `f32` too if `lines_f32` (the kernel writes
 /// whole lines of `f32` as well).
-fn streamed<T: 'static>(bytes: usize, lines_f32: bool) -> bool {
+pub(crate) fn streamed<T: 'static>(bytes: usize, lines_f32: bool) -> bool {
     let f64_ = std::any::TypeId::of::<T>() == std::any::TypeId::of::<f64>();
     (f64_ || lines_f32) && bytes >= NT_MIN_BYTES
 }

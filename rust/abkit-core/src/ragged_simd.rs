@@ -8,8 +8,11 @@
 //! `dt = t_k - t_{k-1}`, the gain law at `dt` (both laws vectorised, see
 //! below), the update (a NaN measurement coasts); transposes give the
 //! estimates (and residuals) back as rows, stored `W` wide: all `x` rows
-//! of a block, then all `v` rows (faster on Zen 3 than lane by lane;
-//! streamed stores measured slower here, so ordinary ones). With the design
+//! of a block, then all `v` rows (faster on Zen 3 than lane by lane).
+//! Ordinary stores, except for the four `f64` lanes with fixed gains on
+//! outputs too big for the caches and long stretches: whole lines put
+//! together from two blocks and streamed ([`Lines`]; half-lines streamed
+//! block by block had measured slower). With the design
 //! law a block without missed measurements skips the coasting blends. A block whose
 //! steps are not all plain running steps of every lane (a timestamp not
 //! after the last one, not finite, or a gap beyond `max_gap`) is not run
@@ -116,6 +119,19 @@ pub struct VLane<'a, T> {
 /// step. Returns the number of steps done (the same for every lane); the
 /// lanes' states are updated. Every slice must hold `steps` samples.
 pub fn run<T: IoFloat>(lanes: &mut [VLane<'_, T>], steps: usize, max_gap: f64) -> usize {
+    run_nt(lanes, steps, max_gap, false)
+}
+
+/// [`run`], the `f64` position and velocity rows of the four AVX2 lanes
+/// with fixed gains written in whole 64-byte lines with streamed stores if
+/// `nt` (outputs too big for the caches; see [`Lines`]), fenced before
+/// returning.
+pub fn run_nt<T: IoFloat>(
+    lanes: &mut [VLane<'_, T>],
+    steps: usize,
+    max_gap: f64,
+    nt: bool,
+) -> usize {
     let w = width();
     if w == 0 || lanes.len() != w || !handles::<T>() {
         return 0;
@@ -145,8 +161,11 @@ pub fn run<T: IoFloat>(lanes: &mut [VLane<'_, T>], steps: usize, max_gap: f64) -
         }
     } else if w == 4 {
         if let Ok(l4) = <&mut [VLane<'_, T>; 4]>::try_from(lanes) {
+            // Streamed lines for the fixed-gain law only: with the design
+            // law they measured slower (docs/benchmarks.md, session 27).
+            let nt = nt && is_f64::<T>() && !resid && !design;
             // SAFETY: `width() == 4` checked AVX2 and FMA.
-            return unsafe { run4(l4, steps, max_gap, design, resid) };
+            return unsafe { run4(l4, steps, max_gap, design, resid, nt) };
         }
     }
     0
@@ -163,10 +182,10 @@ unsafe fn run8<T: IoFloat>(
     // SAFETY: forwarded (AVX-512F and FMA available; slices checked).
     unsafe {
         match (design, resid) {
-            (true, true) => kernel::<V8, T, 8, true, true>(lanes, steps, max_gap),
-            (true, false) => kernel::<V8, T, 8, true, false>(lanes, steps, max_gap),
-            (false, true) => kernel::<V8, T, 8, false, true>(lanes, steps, max_gap),
-            (false, false) => kernel::<V8, T, 8, false, false>(lanes, steps, max_gap),
+            (true, true) => kernel::<V8, T, 8, true, true, false>(lanes, steps, max_gap),
+            (true, false) => kernel::<V8, T, 8, true, false, false>(lanes, steps, max_gap),
+            (false, true) => kernel::<V8, T, 8, false, true, false>(lanes, steps, max_gap),
+            (false, false) => kernel::<V8, T, 8, false, false, false>(lanes, steps, max_gap),
         }
     }
 }
@@ -178,14 +197,16 @@ unsafe fn run4<T: IoFloat>(
     max_gap: f64,
     design: bool,
     resid: bool,
+    nt: bool,
 ) -> usize {
     // SAFETY: forwarded (AVX2 and FMA available; slices checked).
     unsafe {
-        match (design, resid) {
-            (true, true) => kernel::<V4, T, 4, true, true>(lanes, steps, max_gap),
-            (true, false) => kernel::<V4, T, 4, true, false>(lanes, steps, max_gap),
-            (false, true) => kernel::<V4, T, 4, false, true>(lanes, steps, max_gap),
-            (false, false) => kernel::<V4, T, 4, false, false>(lanes, steps, max_gap),
+        match (design, resid, nt) {
+            (true, true, _) => kernel::<V4, T, 4, true, true, false>(lanes, steps, max_gap),
+            (true, false, _) => kernel::<V4, T, 4, true, false, false>(lanes, steps, max_gap),
+            (false, true, _) => kernel::<V4, T, 4, false, true, false>(lanes, steps, max_gap),
+            (false, false, false) => kernel::<V4, T, 4, false, false, false>(lanes, steps, max_gap),
+            (false, false, true) => kernel::<V4, T, 4, false, false, true>(lanes, steps, max_gap),
         }
     }
 }
@@ -614,11 +635,21 @@ unsafe fn design_gains<V: Vd<W>, const W: usize>(sr: V, c2: V, dt: V) -> (V, V) 
 
 /// The kernel (see [`run`]).
 #[inline(always)]
-unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const RESID: bool>(
+unsafe fn kernel<
+    V: Vd<W>,
+    T: IoFloat,
+    const W: usize,
+    const DESIGN: bool,
+    const RESID: bool,
+    const NT: bool,
+>(
     lanes: &mut [VLane<'_, T>; W],
     steps: usize,
     max_gap: f64,
 ) -> usize {
+    // Streamed whole lines: only the four f64 lanes with fixed gains
+    // (`run_nt`).
+    let nt = NT && W == 4 && is_f64::<T>() && !RESID && !DESIGN;
     // SAFETY: the caller has the CPU features of V; `run` checked that every
     // slice holds `steps` samples and T is f32 or f64.
     unsafe {
@@ -652,6 +683,12 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
                 .as_deref_mut()
                 .map_or(std::ptr::null_mut(), |r| r.as_mut_ptr())
         });
+        // Rows 0..W: the lanes' x, W..2W: their v (used only if `nt`, where
+        // T is f64 and W is 4).
+        let mut lines: [Lines; 8] = std::array::from_fn(|i| {
+            let p = if i < 4 { xp[i % W] } else { vp[(i - 4) % W] };
+            Lines::new(p as *mut f64)
+        });
         // The design law's gains of the last step computed, and its dt: a
         // step whose dt equals it in every slot (timestamps on a grid: AIS
         // reports in whole seconds, 1 Hz GNSS logs) reuses them; the same
@@ -673,8 +710,11 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
                 }
                 prefetch(tp[l].wrapping_add(k + PREFETCH));
                 prefetch(zp[l].wrapping_add(k + PREFETCH));
-                prefetch(xp[l].wrapping_add(k + PREFETCH));
-                prefetch(vp[l].wrapping_add(k + PREFETCH));
+                if !nt {
+                    // (Streamed rows are not read: no fetch for ownership.)
+                    prefetch(xp[l].wrapping_add(k + PREFETCH));
+                    prefetch(vp[l].wrapping_add(k + PREFETCH));
+                }
                 if RESID {
                     prefetch(rp[l].wrapping_add(k + PREFETCH));
                 }
@@ -748,6 +788,17 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             t_last = tv[W - 1];
             V::transpose(&mut xo);
             V::transpose(&mut vo);
+            if nt {
+                // W == 4 here.
+                for l in 0..4 {
+                    lines[l].put(k, &xo[l].to_lanes());
+                }
+                for l in 0..4 {
+                    lines[4 + l].put(k, &vo[l].to_lanes());
+                }
+                k += W;
+                continue;
+            }
             for l in 0..W {
                 xo[l].store(xp[l].add(k));
             }
@@ -762,6 +813,12 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             }
             k += W;
         }
+        if nt {
+            for ln in lines.iter_mut() {
+                ln.finish(k);
+            }
+            _mm_sfence();
+        }
         let (xa, va, ta) = (x.to_lanes(), v.to_lanes(), t_last.to_lanes());
         for l in 0..W {
             lanes[l].x = xa[l];
@@ -769,5 +826,133 @@ unsafe fn kernel<V: Vd<W>, T: IoFloat, const W: usize, const DESIGN: bool, const
             lanes[l].t_last = ta[l];
         }
         k
+    }
+}
+
+/// One `f64` output row of a four-lane block kernel written in whole
+/// 64-byte lines with streamed stores ([`run_nt`]): each block hands over
+/// its four values at element `k` (a multiple of 4); the 32-byte aligned
+/// half-lines are put together from two consecutive blocks when the row
+/// is not 32-byte aligned (one or two shuffles), a line is streamed when
+/// both its halves are there, and the parts of lines that the call does
+/// not write whole (before its first whole line, after its last) get
+/// ordinary stores. Before, these lanes wrote their rows with ordinary
+/// stores: every output line was read from memory first (48 bytes of
+/// traffic per sample instead of 32): 1,000 x 10,000 fixed gains 1.63-1.67
+/// -> 1.46-1.47 ns per sample. With the design law (more arithmetic per
+/// step) the per-row bookkeeping cost more than the traffic saved
+/// (1.71-1.72 -> 1.88-1.90), so it keeps its ordinary stores
+/// (docs/benchmarks.md, session 27).
+struct Lines {
+    base: *mut f64,
+    /// Elements of the previous block in the aligned half-line that ends
+    /// inside the current one (the row's start, in elements, modulo 4).
+    e: usize,
+    prev: __m256d,
+    /// A first half-line waiting for its second (at element `held_at`).
+    held: Option<(usize, __m256d)>,
+    /// Blocks handed over.
+    started: bool,
+}
+
+impl Lines {
+    fn new(base: *mut f64) -> Self {
+        Lines {
+            base,
+            e: (base as usize / 8) % 4,
+            // SAFETY: plain register value (AVX is available to every
+            // caller, see `put`).
+            prev: unsafe { _mm256_setzero_pd() },
+            held: None,
+            started: false,
+        }
+    }
+
+    /// The block's values `a` at elements `k..k + 4` of the row.
+    ///
+    /// # Safety
+    /// AVX2 is available; the row has `k + 4` writable elements.
+    #[inline(always)]
+    unsafe fn put(&mut self, k: usize, a: &[f64]) {
+        let Some(a) = a.first_chunk::<4>() else {
+            return;
+        };
+        // SAFETY: forwarded from the caller.
+        unsafe {
+            let cur = _mm256_loadu_pd(a.as_ptr());
+            let e = self.e;
+            if e == 0 {
+                self.half(k, cur);
+            } else {
+                if self.started {
+                    // [prev's last e | cur's first 4 - e] at element k - e.
+                    let t = _mm256_permute2f128_pd::<0x21>(self.prev, cur);
+                    let h = match e {
+                        1 => _mm256_shuffle_pd::<5>(t, cur),
+                        2 => t,
+                        _ => _mm256_shuffle_pd::<5>(self.prev, t),
+                    };
+                    self.half(k - e, h);
+                } else {
+                    // The first 4 - e values finish a half-line that began
+                    // before this call: ordinary stores.
+                    for (i, v) in a.iter().enumerate().take(4 - e) {
+                        *self.base.add(k + i) = *v;
+                    }
+                }
+                self.prev = cur;
+            }
+            self.started = true;
+        }
+    }
+
+    /// An aligned half-line `h` at element `at`.
+    ///
+    /// # Safety
+    /// AVX is available; elements `at..at + 4` are writable and 32-byte
+    /// aligned.
+    #[inline(always)]
+    unsafe fn half(&mut self, at: usize, h: __m256d) {
+        // SAFETY: forwarded from the caller.
+        unsafe {
+            let p = self.base.add(at);
+            if (p as usize).is_multiple_of(64) {
+                if let Some((hk, hv)) = self.held.take() {
+                    _mm256_store_pd(self.base.add(hk), hv);
+                }
+                self.held = Some((at, h));
+            } else if let Some((hk, hv)) = self.held.take() {
+                // hk == at - 4: the line's first half, then its second.
+                _mm256_stream_pd(self.base.add(hk), hv);
+                _mm256_stream_pd(p, h);
+            } else {
+                // The second half of a line whose first half this call does
+                // not write.
+                _mm256_store_pd(p, h);
+            }
+        }
+    }
+
+    /// After the last block (the row written up to element `end`): the
+    /// waiting half-line and the values after the last whole half-line.
+    ///
+    /// # Safety
+    /// AVX is available; the row has `end` writable elements.
+    #[inline(always)]
+    unsafe fn finish(&mut self, end: usize) {
+        // SAFETY: forwarded from the caller.
+        unsafe {
+            if let Some((hk, hv)) = self.held.take() {
+                _mm256_store_pd(self.base.add(hk), hv);
+            }
+            if self.started && self.e > 0 {
+                let mut a = [0.0; 4];
+                _mm256_storeu_pd(a.as_mut_ptr(), self.prev);
+                for (i, v) in a.iter().enumerate().skip(4 - self.e) {
+                    *self.base.add(end - 4 + i) = *v;
+                }
+            }
+            self.started = false;
+        }
     }
 }
