@@ -965,7 +965,8 @@ fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
 ) -> usize {
     use crate::ragged_simd::{run_nt, width, VLane};
     // Outputs too big for the caches: whole lines streamed (`run_nt`).
-    let nt = crate::filter::streamed::<T>(2 * z.data.len() * std::mem::size_of::<T>(), false);
+    let bytes = z.data.len().saturating_mul(2 * std::mem::size_of::<T>());
+    let nt = crate::filter::streamed::<T>(bytes, false);
     let w = width();
     if lanes.is_empty() || lanes.len() > w {
         return 0;
@@ -1052,8 +1053,9 @@ fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
         }
         // Streamed only over long stretches: each call stores the part
         // lines at its ends with ordinary stores and fences (ragged fixed
-        // gains, lengths 10..10,000: 523 -> 443-450 Msamples/s when every
-        // stretch streamed).
+        // gains, lengths 10..10,000, every stretch streamed: 443-450
+        // Msamples/s, against 470-523 without; docs/benchmarks.md,
+        // session 27).
         let d = run_nt(&mut vl, chunk, max_gap, nt && chunk >= NT_MIN_STEPS);
         let mut res = [(0.0, 0.0, 0.0); MAX_TRACK_LANES];
         for (r, q) in res.iter_mut().zip(vl.iter()) {

@@ -683,8 +683,8 @@ unsafe fn kernel<
                 .as_deref_mut()
                 .map_or(std::ptr::null_mut(), |r| r.as_mut_ptr())
         });
-        // Rows 0..W: the lanes' x, W..2W: their v (used only if `nt`, where
-        // T is f64 and W is 4).
+        // Rows 0..4: the lanes' x, 4..8: their v (used only if `nt`, where
+        // T is f64 and W is 4; otherwise never written through).
         let mut lines: [Lines; 8] = std::array::from_fn(|i| {
             let p = if i < 4 { xp[i % W] } else { vp[(i - 4) % W] };
             Lines::new(p as *mut f64)
