@@ -353,7 +353,8 @@ def test_fixed_gain_lanes_streamed_lines_equal_scalar_lanes(tmp_path):
     together from two blocks (rows at every offset modulo 4 and 8 samples,
     the first and last part lines with ordinary stores). The same bits as
     the scalar lanes (ABKIT_DISABLE_SIMD=1, another process), ragged and
-    rectangular, with NaN and gaps (blocks the vector lanes stop at)."""
+    rectangular (rows longer than the 2,048-step stretches streamed), with
+    NaN and gaps (blocks the vector lanes stop at)."""
     code = r"""
 import sys, numpy as np
 sys.path.insert(0, sys.argv[3])
@@ -369,8 +370,8 @@ for case, kw, gaps in (("a", dict(), 0.0), ("b", dict(max_gap=20.0), 0.002)):
     r = f.run(z, t=t, offsets=off, **kw)
     out[case + "_s"] = r.states
     out[case + "_x"] = r.state.x
-    zr = z[: 600 * 1001].reshape(600, 1001)
-    tr = np.cumsum(np.random.default_rng(3).uniform(0.05, 0.15, (600, 1001)), axis=1)
+    zr = z[: 150 * 4001].reshape(150, 4001)
+    tr = np.cumsum(np.random.default_rng(3).uniform(0.05, 0.15, (150, 4001)), axis=1)
     rect = f.run(zr, t=tr, **kw)
     out[case + "_rect"] = rect.states
     out[case + "_rect_x"] = rect.state.x
