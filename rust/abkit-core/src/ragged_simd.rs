@@ -849,7 +849,8 @@ struct Lines {
     /// inside the current one (the row's start, in elements, modulo 4).
     e: usize,
     prev: __m256d,
-    /// A first half-line waiting for its second (at element `held_at`).
+    /// A first half-line waiting for its second: its first element and
+    /// its values.
     held: Option<(usize, __m256d)>,
     /// Blocks handed over.
     started: bool,
