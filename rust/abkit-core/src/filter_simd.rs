@@ -388,6 +388,19 @@ pub(super) fn no_nan16(rows: &[__m512; W]) -> bool {
     _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(sum, sum) == 0
 }
 
+/// Lane phases (module docs of `flat`, "Slot phases"): lane `l`, whose
+/// current line is `line[l]` (its first output's address / 64), starts one
+/// block of `sb` samples later where that line's parity is not `l` plus
+/// lane 0's, so that neighbouring lanes' lines alternate in parity.
+#[inline]
+fn alternate_parities<const L: usize>(k: &mut [usize; L], line: &[usize; L], sb: usize) {
+    for l in 1..L {
+        if (line[l] ^ line[0] ^ l) & 1 != 0 {
+            k[l] += sb;
+        }
+    }
+}
+
 /// The eight lanes over samples `k0..n` (see the module docs): the same
 /// contract as the scalar `ab_lanes`, with non-temporal stores if `nt`.
 /// The caller checks [`fits`] first.
@@ -438,14 +451,10 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     // float64 (1,250 lines, every lane on the same parity) 1.19 -> 0.87 ns
     // per sample. `fits` leaves room: k[l] + sb <= k0 + 31 < n.
     if nt {
-        let line =
-            |l: usize, kl: usize| (xs[l].as_ptr() as usize + kl * std::mem::size_of::<T>()) / 64;
-        let l0 = line(0, k[0]);
-        for l in 1..AB_LANES {
-            if (line(l, k[l]) ^ l0 ^ l) & 1 != 0 {
-                k[l] += sb;
-            }
-        }
+        let line: [usize; AB_LANES] = std::array::from_fn(|l| {
+            (xs[l].as_ptr() as usize + k[l] * std::mem::size_of::<T>()) / 64
+        });
+        alternate_parities(&mut k, &line, sb);
     }
     scalar_steps(c, &mut x, &mut v, &z, &mut xs, &mut vs, [k0; AB_LANES], k);
     let aligned =
@@ -1396,11 +1405,7 @@ pub(super) unsafe fn gen_lanes8<T: IoFloat, const N: usize, const M: usize>(
             std::array::from_fn(|l| (group[l].2.states[0].as_ptr() as usize + k[l] * size) / 64);
         let same = (1..L).filter(|&l| (line[l] ^ line[l - 1]) & 1 == 0).count();
         if same >= 6 {
-            for l in 1..L {
-                if (line[l] ^ line[0] ^ l) & 1 != 0 {
-                    k[l] += sb;
-                }
-            }
+            alternate_parities(&mut k, &line, sb);
         }
     }
     let blocks = k

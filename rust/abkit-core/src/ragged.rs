@@ -925,7 +925,7 @@ fn vector_width<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize, co
 const PAD_STEPS: usize = 256;
 
 /// Shortest stretch of vector steps whose outputs are streamed
-/// (`ragged_simd::run_nt`).
+/// (`ragged_simd::run`).
 #[cfg(target_arch = "x86_64")]
 const NT_MIN_STEPS: usize = 2048;
 
@@ -963,8 +963,8 @@ fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     max_gap: f64,
     pad: &mut Pad<T>,
 ) -> usize {
-    use crate::ragged_simd::{run_nt, width, VLane};
-    // Outputs too big for the caches: whole lines streamed (`run_nt`).
+    use crate::ragged_simd::{run, width, VLane};
+    // Outputs too big for the caches: whole lines streamed (`run`).
     let bytes = z.data.len().saturating_mul(2 * std::mem::size_of::<T>());
     let nt = crate::filter::streamed::<T>(bytes, false);
     let w = width();
@@ -1056,7 +1056,7 @@ fn vector_steps<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
         // gains, lengths 10..10,000, every stretch streamed: 443-450
         // Msamples/s, against 470-523 without; docs/benchmarks.md,
         // session 27).
-        let d = run_nt(&mut vl, chunk, max_gap, nt && chunk >= NT_MIN_STEPS);
+        let d = run(&mut vl, chunk, max_gap, nt && chunk >= NT_MIN_STEPS);
         let mut res = [(0.0, 0.0, 0.0); MAX_TRACK_LANES];
         for (r, q) in res.iter_mut().zip(vl.iter()) {
             *r = (q.x, q.v, q.t_last);

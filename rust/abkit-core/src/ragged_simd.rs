@@ -118,20 +118,12 @@ pub struct VLane<'a, T> {
 /// before the first block that holds a step which is not a plain running
 /// step. Returns the number of steps done (the same for every lane); the
 /// lanes' states are updated. Every slice must hold `steps` samples.
-pub fn run<T: IoFloat>(lanes: &mut [VLane<'_, T>], steps: usize, max_gap: f64) -> usize {
-    run_nt(lanes, steps, max_gap, false)
-}
-
-/// [`run`], the `f64` position and velocity rows of the four AVX2 lanes
-/// with fixed gains written in whole 64-byte lines with streamed stores if
-/// `nt` (outputs too big for the caches; see [`Lines`]), fenced before
-/// returning.
-pub fn run_nt<T: IoFloat>(
-    lanes: &mut [VLane<'_, T>],
-    steps: usize,
-    max_gap: f64,
-    nt: bool,
-) -> usize {
+///
+/// With `nt` (outputs too big for the caches) the `f64` position and
+/// velocity rows of the four AVX2 lanes with fixed gains are written in
+/// whole 64-byte lines with streamed stores ([`Lines`]), fenced before
+/// returning; every other case stores as without it.
+pub fn run<T: IoFloat>(lanes: &mut [VLane<'_, T>], steps: usize, max_gap: f64, nt: bool) -> usize {
     let w = width();
     if w == 0 || lanes.len() != w || !handles::<T>() {
         return 0;
@@ -647,9 +639,9 @@ unsafe fn kernel<
     steps: usize,
     max_gap: f64,
 ) -> usize {
-    // Streamed whole lines: only the four f64 lanes with fixed gains
-    // (`run_nt`).
-    let nt = NT && W == 4 && is_f64::<T>() && !RESID && !DESIGN;
+    // `NT` is chosen by `run` (four f64 lanes with fixed gains); `Lines`
+    // writes f64 rows of four lanes.
+    let nt = NT && W == 4 && is_f64::<T>();
     // SAFETY: the caller has the CPU features of V; `run` checked that every
     // slice holds `steps` samples and T is f32 or f64.
     unsafe {
@@ -683,11 +675,9 @@ unsafe fn kernel<
                 .as_deref_mut()
                 .map_or(std::ptr::null_mut(), |r| r.as_mut_ptr())
         });
-        // Rows 0..4: the lanes' x, 4..8: their v (used only if `nt`, where
-        // T is f64 and W is 4; otherwise never written through).
-        let mut lines: [Lines; 8] = std::array::from_fn(|i| {
-            let p = if i < 4 { xp[i % W] } else { vp[(i - 4) % W] };
-            Lines::new(p as *mut f64)
+        // Rows 0..4: the lanes' x, 4..8: their v (T is f64 and W is 4).
+        let mut lines: Option<[Lines; 8]> = nt.then(|| {
+            std::array::from_fn(|i| Lines::new((if i < 4 { xp[i] } else { vp[i - 4] }) as *mut f64))
         });
         // The design law's gains of the last step computed, and its dt: a
         // step whose dt equals it in every slot (timestamps on a grid: AIS
@@ -788,8 +778,7 @@ unsafe fn kernel<
             t_last = tv[W - 1];
             V::transpose(&mut xo);
             V::transpose(&mut vo);
-            if nt {
-                // W == 4 here.
+            if let Some(lines) = lines.as_mut() {
                 for l in 0..4 {
                     lines[l].put(k, &xo[l].to_lanes());
                 }
@@ -813,7 +802,7 @@ unsafe fn kernel<
             }
             k += W;
         }
-        if nt {
+        if let Some(lines) = lines.as_mut() {
             for ln in lines.iter_mut() {
                 ln.finish(k);
             }
@@ -830,7 +819,7 @@ unsafe fn kernel<
 }
 
 /// One `f64` output row of a four-lane block kernel written in whole
-/// 64-byte lines with streamed stores ([`run_nt`]): each block hands over
+/// 64-byte lines with streamed stores ([`run`]): each block hands over
 /// its four values at element `k` (a multiple of 4); the 32-byte aligned
 /// half-lines are put together from two consecutive blocks when the row
 /// is not 32-byte aligned (one or two shuffles), a line is streamed when
