@@ -261,3 +261,13 @@ DEFINE_COPYNT(copy2nt_f32, copy3nt_f32, float, NT_S, LD_S)
 DEFINE_COPYNT(copy2nt_f64, copy3nt_f64, double)
 DEFINE_COPYNT(copy2nt_f32, copy3nt_f32, float)
 #endif
+
+/* Allocation alone: make every page of a fresh buffer exist by writing one
+ * byte per 4 KiB (the first write to a page faults it in: the kernel maps
+ * and zeroes it; with transparent huge pages one fault per 2 MiB). This is
+ * what the memory of a new output costs before anything is written to it. */
+void touch_pages(char *p, ptrdiff_t nbytes) {
+    volatile char *q = p;
+    for (ptrdiff_t k = 0; k < nbytes; k += 4096) q[k] = 0;
+    if (nbytes > 0) q[nbytes - 1] = 0;
+}

@@ -173,6 +173,8 @@ def build_c() -> ctypes.CDLL:
         getattr(lib, name).argtypes = [P, P, P, P, N]
         getattr(lib, name).restype = ctypes.c_int
     lib.nt_available.restype = ctypes.c_int
+    lib.touch_pages.argtypes = [P, N]
+    lib.touch_pages.restype = None
     return lib
 
 
@@ -482,6 +484,13 @@ class Bench:
             copy2(zp, ptr(f[0]), ptr(f[1]), n)
 
         add("ceiling: np.empty + C copy (fresh outputs)", "fresh_copy", fresh_copy, None)
+
+        # allocation alone: np.empty + one write per 4 KiB page (the page faults)
+        def fresh_alloc() -> None:
+            f = np.empty((2, nt, ns), dtype=dt)
+            lib.touch_pages(ptr(f), f.nbytes)
+
+        add("allocation alone: np.empty + C page touch (fresh outputs)", "fresh_alloc", fresh_alloc, None)
         # 3-output ceiling (alpha-beta-gamma / 3-state)
         o3c = np.empty((3, nt, ns), dtype=dt)
         o3c.fill(0)
@@ -809,9 +818,24 @@ def report(b: Bench, crit: Dict[str, Tuple[float, float, float, float]], sizes, 
     for wl, nt, ns in wls:
         vals = {}
         for dt in dts:
+            alloc = tmin(wl, dt, ("fresh_alloc",))
+            vals[dt] = (a1[wl, dt] + alloc) * 1.1 / get(wl, dt, "abkit1_fresh")["t_min"]
+        target("no out=: 1.1 x (time with out= + allocating the outputs alone) / time without (>= 1 met)",
+               wl, vals, 1.0)
+    for wl, nt, ns in wls:
+        vals = {}
+        for dt in dts:
+            extra = get(wl, dt, "abkit1_fresh")["t_min"] - a1[wl, dt]
+            alloc = tmin(wl, dt, ("fresh_alloc",))
+            vals[dt] = 1.1 * alloc / extra if extra > 0 else math.inf  # no extra time at all
+        target("no out=, stricter: 1.1 x allocating the outputs alone / (time without - time with) (>= 1 met)",
+               wl, vals, 1.0)
+    for wl, nt, ns in wls:
+        vals = {}
+        for dt in dts:
             alloc = max(0.0, tmin(wl, dt, ("fresh_copy",)) - tmin(wl, dt, ("ceiling2",)))
             vals[dt] = (a1[wl, dt] + alloc) * 1.1 / get(wl, dt, "abkit1_fresh")["t_min"]
-        target("no out=: 1.1 x (time with out= + fresh-output cost) / time without (>= 1 met)", wl, vals, 1.0)
+        target("(for reference) the same with the copy pass's fresh - warm as the allocation cost", wl, vals, 1.0)
     for kinds, what in ((C3, "ceiling3 (best pass)"), (RS3, "regular-store ceiling3")):
         for wl, nt, ns in wls:
             target(f"general 3-state >= 0.5 of {what}", wl,
@@ -822,8 +846,10 @@ def report(b: Bench, crit: Dict[str, Tuple[float, float, float, float]], sizes, 
     w("|---|---:|")
     for wl, nt, ns in wls:
         for dt in dts:
-            alloc = tmin(wl, dt, ("fresh_copy",)) - tmin(wl, dt, ("ceiling2",))
-            w(f"| {wl} {dt}: fresh outputs (np.empty + page faults), copy pass fresh - warm | {alloc * 1e3:.1f} ms "
+            alloc = tmin(wl, dt, ("fresh_alloc",))
+            cdiff = tmin(wl, dt, ("fresh_copy",)) - tmin(wl, dt, ("ceiling2",))
+            w(f"| {wl} {dt}: allocating the outputs alone (np.empty + one write per page); copy pass fresh - warm "
+              f"| {alloc * 1e3:.1f} ms; {cdiff * 1e3:.1f} ms "
               f"(abkit with out=: {a1[wl, dt] * 1e3:.1f} ms, without: {get(wl, dt, 'abkit1_fresh')['t_min'] * 1e3:.1f} ms) |")
     for k, v in overheads.items():
         w(f"| {k} | {v * 1e6:,.1f} µs |")
