@@ -2316,7 +2316,7 @@ pub(crate) fn ab_tracks_flat<T: IoFloat>(
     parallel: bool,
     vstart: Option<FlatVecStart>,
 ) -> Option<Result<()>> {
-    let kind = flat_kernel()?;
+    let kind = tracks_flat_kernel::<T>(flat_kernel()?);
     if !simd::fits::<T>(0, 32) || gains.is_empty() {
         return None;
     }
@@ -2345,8 +2345,9 @@ pub(crate) fn ab_tracks_flat<T: IoFloat>(
         })
         .collect();
     let any_split = split.iter().any(|&s| s);
-    // SAFETY: `flat_kernel()` checked the CPU features of `kind`; T is f32
-    // or f64 (`fits`).
+    // SAFETY: `flat_kernel()` checked the CPU features of `kind` (and
+    // `tracks_flat_kernel` those of the AVX2 kind it may give instead:
+    // `avx2_available()`); T is f32 or f64 (`fits`).
     let r = unsafe {
         run_flat(
             kind,
@@ -2423,6 +2424,48 @@ unsafe fn ab_track_fma<T: IoFloat>(
         Some(plan) => ab_split::<T, true>(c, st, k0, row, &mut o, plan, parallel),
         None => ab_loop::<T, true>(c, st, k0, row.len(), |k| row[k].to_f64(), &mut o),
     }
+}
+
+/// The flat kernel of [`ab_tracks_flat`] (ragged batches) given the CPU's
+/// flat kernel `kind`: on an AMD Zen 4 (family 19h with AVX-512) `f64`
+/// tracks run in the AVX2 instance instead of the hand-written AVX-512
+/// kernel (4 slots and 8 output streams instead of 8 and 16): there it was
+/// faster on every ragged mix measured, `ragbench`, 10^7 samples from
+/// memory, ns per sample, AVX-512 -> AVX2 (minimum of 5 alternated runs):
+/// lengths 10..10,000 1.07 -> 0.92, 10..300 2.34 -> 1.65, 1,000..10,000
+/// 1.01 -> 0.93, all 300 1.04 -> 0.94, all 100 1.27 -> 1.17; from Python
+/// (`bench/bench_tracks.py`) ragged 10..10,000 893 -> 1,005 Msamples/s,
+/// while `f32` lost 3-5 % and so keeps the AVX-512 kernel (rectangular
+/// short rows keep it too: the AVX2 kind was as fast or slower there;
+/// docs/benchmarks.md, session 30). `ABKIT_FLAT_AVX2=0` keeps the AVX-512
+/// kernel here as well (tests and comparisons); `ABKIT_FLAT_AVX2=1` gave
+/// the AVX2 kind already. The same bits either way.
+#[cfg(target_arch = "x86_64")]
+fn tracks_flat_kernel<T: 'static>(kind: FlatKernel) -> FlatKernel {
+    static ZEN4: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let zen4 = *ZEN4.get_or_init(|| {
+        let forced_off = std::env::var_os("ABKIT_FLAT_AVX2").is_some_and(|v| v == "0");
+        !forced_off && amd_family() == Some(0x19) && simd::avx2_available()
+    });
+    if kind == FlatKernel::Avx512 && zen4 && simd::is_f64::<T>() {
+        FlatKernel::Avx2
+    } else {
+        kind
+    }
+}
+
+/// The CPU family (base + extended, as `lscpu` prints it) of an AMD CPU,
+/// `None` on other vendors.
+#[cfg(target_arch = "x86_64")]
+fn amd_family() -> Option<u32> {
+    use std::arch::x86_64::__cpuid;
+    #[allow(unused_unsafe)]
+    // SAFETY: CPUID leaves 0 and 1 exist on every x86_64 CPU.
+    let (l0, l1) = unsafe { (__cpuid(0), __cpuid(1)) };
+    let amd = (l0.ebx, l0.edx, l0.ecx) == (0x6874_7541, 0x6974_6e65, 0x444d_4163);
+    let base = (l1.eax >> 8) & 0xf;
+    let ext = (l1.eax >> 20) & 0xff;
+    amd.then_some(if base == 0xf { base + ext } else { base })
 }
 
 /// The flat kernels (see [`flat`] and [`flatv`]).

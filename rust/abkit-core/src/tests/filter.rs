@@ -990,3 +990,31 @@ fn short_row_cases(k: Kernel) {
         }
     }
 }
+
+/// `amd_family` (the CPU check behind `tracks_flat_kernel`) agrees with
+/// the kernel's `/proc/cpuinfo` (vendor and family) where there is one.
+#[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+#[test]
+fn amd_family_matches_proc_cpuinfo() {
+    let Ok(info) = std::fs::read_to_string("/proc/cpuinfo") else {
+        eprintln!("no /proc/cpuinfo: not checked");
+        return;
+    };
+    let field = |name: &str| {
+        info.lines()
+            .find(|l| l.split(':').next().map(str::trim) == Some(name))
+            .and_then(|l| l.split(':').nth(1))
+            .map(|v| v.trim().to_string())
+    };
+    let vendor = field("vendor_id").expect("vendor_id in /proc/cpuinfo");
+    let family: u32 = field("cpu family")
+        .expect("cpu family in /proc/cpuinfo")
+        .parse()
+        .expect("a number");
+    let want = (vendor == "AuthenticAMD").then_some(family);
+    assert_eq!(
+        super::amd_family(),
+        want,
+        "vendor {vendor}, family {family}"
+    );
+}
