@@ -794,6 +794,9 @@ def report(b: Bench, crit: Dict[str, Tuple[float, float, float, float]], sizes, 
 
     dts = ("f64", "f32")
     a1 = {(wl, dt): get(wl, dt, "abkit1")["t_min"] for wl, _, _ in wls for dt in dts}
+    # without out= (fresh outputs), and allocating the outputs alone
+    fresh = {(wl, dt): get(wl, dt, "abkit1_fresh")["t_min"] for wl, _, _ in wls for dt in dts}
+    alloc = {(wl, dt): tmin(wl, dt, ("fresh_alloc",)) for wl, _, _ in wls for dt in dts}
     for kinds, what in ((C2, "ceiling (best pass)"), (RS2, "regular-store ceiling")):
         for wl, nt, ns in wls:
             thr = 0.55 if nt == 1 else 0.8
@@ -816,25 +819,18 @@ def report(b: Bench, crit: Dict[str, Tuple[float, float, float, float]], sizes, 
                f"non-temporal {bwn['f64']:.2f}/{bwn['f32']:.2f})", wl,
                {dt: a1[wl, dt] / get(wl, dt, "abkit2")["t_min"] for dt in dts}, 1.5)
     for wl, nt, ns in wls:
-        vals = {}
-        for dt in dts:
-            alloc = tmin(wl, dt, ("fresh_alloc",))
-            vals[dt] = (a1[wl, dt] + alloc) * 1.1 / get(wl, dt, "abkit1_fresh")["t_min"]
         target("no out=: 1.1 x (time with out= + allocating the outputs alone) / time without (>= 1 met)",
-               wl, vals, 1.0)
+               wl, {dt: (a1[wl, dt] + alloc[wl, dt]) * 1.1 / fresh[wl, dt] for dt in dts}, 1.0)
     for wl, nt, ns in wls:
-        vals = {}
-        for dt in dts:
-            extra = get(wl, dt, "abkit1_fresh")["t_min"] - a1[wl, dt]
-            alloc = tmin(wl, dt, ("fresh_alloc",))
-            vals[dt] = 1.1 * alloc / extra if extra > 0 else math.inf  # no extra time at all
+        extra = {dt: fresh[wl, dt] - a1[wl, dt] for dt in dts}
+        # math.inf: no extra time at all
         target("no out=, stricter: 1.1 x allocating the outputs alone / (time without - time with) (>= 1 met)",
-               wl, vals, 1.0)
+               wl, {dt: 1.1 * alloc[wl, dt] / extra[dt] if extra[dt] > 0 else math.inf for dt in dts}, 1.0)
     for wl, nt, ns in wls:
         vals = {}
         for dt in dts:
-            alloc = max(0.0, tmin(wl, dt, ("fresh_copy",)) - tmin(wl, dt, ("ceiling2",)))
-            vals[dt] = (a1[wl, dt] + alloc) * 1.1 / get(wl, dt, "abkit1_fresh")["t_min"]
+            cdiff = max(0.0, tmin(wl, dt, ("fresh_copy",)) - tmin(wl, dt, ("ceiling2",)))
+            vals[dt] = (a1[wl, dt] + cdiff) * 1.1 / fresh[wl, dt]
         target("(for reference) the same with the copy pass's fresh - warm as the allocation cost", wl, vals, 1.0)
     for kinds, what in ((C3, "ceiling3 (best pass)"), (RS3, "regular-store ceiling3")):
         for wl, nt, ns in wls:
@@ -846,11 +842,10 @@ def report(b: Bench, crit: Dict[str, Tuple[float, float, float, float]], sizes, 
     w("|---|---:|")
     for wl, nt, ns in wls:
         for dt in dts:
-            alloc = tmin(wl, dt, ("fresh_alloc",))
             cdiff = tmin(wl, dt, ("fresh_copy",)) - tmin(wl, dt, ("ceiling2",))
             w(f"| {wl} {dt}: allocating the outputs alone (np.empty + one write per page); copy pass fresh - warm "
-              f"| {alloc * 1e3:.1f} ms; {cdiff * 1e3:.1f} ms "
-              f"(abkit with out=: {a1[wl, dt] * 1e3:.1f} ms, without: {get(wl, dt, 'abkit1_fresh')['t_min'] * 1e3:.1f} ms) |")
+              f"| {alloc[wl, dt] * 1e3:.1f} ms; {cdiff * 1e3:.1f} ms "
+              f"(abkit with out=: {a1[wl, dt] * 1e3:.1f} ms, without: {fresh[wl, dt] * 1e3:.1f} ms) |")
     for k, v in overheads.items():
         w(f"| {k} | {v * 1e6:,.1f} µs |")
     for k, v in crit.items():
