@@ -2457,7 +2457,7 @@ fn tracks_flat_kernel<T: 'static>(kind: FlatKernel) -> FlatKernel {
 /// The CPU family (base + extended, as `lscpu` prints it) of an AMD CPU,
 /// `None` on other vendors.
 #[cfg(target_arch = "x86_64")]
-fn amd_family() -> Option<u32> {
+pub(crate) fn amd_family() -> Option<u32> {
     use std::arch::x86_64::__cpuid;
     #[allow(unused_unsafe)]
     // SAFETY: CPUID leaves 0 and 1 exist on every x86_64 CPU.

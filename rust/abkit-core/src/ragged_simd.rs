@@ -38,7 +38,9 @@
 //! FMA, 8 lanes, only with `ABKIT_TRACKS_AVX512=1`: bit-identical on an
 //! AVX-512 Xeon, but slower there than the 4 lanes, see [`width`]), and
 //! not when `ABKIT_DISABLE_SIMD` is set (to anything but `0`, before the
-//! first call); the scalar lanes run otherwise.
+//! first call); the scalar lanes run otherwise. On an AMD Zen 4 the 4 lanes
+//! are compiled with AVX-512VL, store without streaming and do not
+//! prefetch ([`zen4`]; same bits).
 #![allow(clippy::too_many_arguments)]
 
 use crate::filter::IoFloat;
@@ -122,7 +124,8 @@ pub struct VLane<'a, T> {
 /// With `nt` (outputs too big for the caches) the `f64` position and
 /// velocity rows of the four AVX2 lanes with fixed gains are written in
 /// whole 64-byte lines with streamed stores ([`Lines`]), fenced before
-/// returning; every other case stores as without it.
+/// returning (not on a Zen 4: [`zen4`]); every other case stores as
+/// without it.
 pub fn run<T: IoFloat>(lanes: &mut [VLane<'_, T>], steps: usize, max_gap: f64, nt: bool) -> usize {
     let w = width();
     if w == 0 || lanes.len() != w || !handles::<T>() {
@@ -153,6 +156,11 @@ pub fn run<T: IoFloat>(lanes: &mut [VLane<'_, T>], steps: usize, max_gap: f64, n
         }
     } else if w == 4 {
         if let Ok(l4) = <&mut [VLane<'_, T>; 4]>::try_from(lanes) {
+            if zen4() {
+                // Ordinary stores and no software prefetch ([`zen4`]).
+                // SAFETY: `zen4()` checked AVX2, FMA, AVX-512F and -VL.
+                return unsafe { run4_zen4(l4, steps, max_gap, design, resid) };
+            }
             // Streamed lines for the fixed-gain law only: with the design
             // law they measured slower (docs/benchmarks.md, session 27).
             let nt = nt && is_f64::<T>() && !resid && !design;
@@ -174,10 +182,51 @@ unsafe fn run8<T: IoFloat>(
     // SAFETY: forwarded (AVX-512F and FMA available; slices checked).
     unsafe {
         match (design, resid) {
-            (true, true) => kernel::<V8, T, 8, true, true, false>(lanes, steps, max_gap),
-            (true, false) => kernel::<V8, T, 8, true, false, false>(lanes, steps, max_gap),
-            (false, true) => kernel::<V8, T, 8, false, true, false>(lanes, steps, max_gap),
-            (false, false) => kernel::<V8, T, 8, false, false, false>(lanes, steps, max_gap),
+            (true, true) => kernel::<V8, T, 8, true, true, false>(lanes, steps, max_gap, true),
+            (true, false) => kernel::<V8, T, 8, true, false, false>(lanes, steps, max_gap, true),
+            (false, true) => kernel::<V8, T, 8, false, true, false>(lanes, steps, max_gap, true),
+            (false, false) => kernel::<V8, T, 8, false, false, false>(lanes, steps, max_gap, true),
+        }
+    }
+}
+
+/// Whether the four lanes take their AMD Zen 4 form: on AMD family 19h
+/// with AVX-512F and AVX-512VL (Zen 4; `ABKIT_TRACKS_ZEN4=0` turns it off),
+/// the same kernel compiled with AVX-512VL (32 vector registers instead of
+/// 16: fewer spills; the same operations, so the same bits), with ordinary
+/// stores instead of the streamed lines of the fixed-gain law, and without
+/// software prefetches. Measured on a Zen 4 EPYC guest (`irrbench`, 10^7
+/// samples from memory, ns per sample, docs/benchmarks.md, session 31):
+/// fixed gains 1.65 -> 1.20, design law 1.87-2.0 -> 1.80-1.86. There the
+/// streamed lines were slower than ordinary stores (1.65 against 1.27-1.29)
+/// and the prefetches cost more than they saved (1.27-1.31 against
+/// 1.19-1.21), unlike on the Zen 3 and the Xeon they were tuned on.
+pub(crate) fn zen4() -> bool {
+    use std::sync::OnceLock;
+    static Z: OnceLock<bool> = OnceLock::new();
+    *Z.get_or_init(|| {
+        std::env::var_os("ABKIT_TRACKS_ZEN4").is_none_or(|v| v != "0")
+            && crate::filter::amd_family() == Some(0x19)
+            && is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("avx512vl")
+    })
+}
+
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+unsafe fn run4_zen4<T: IoFloat>(
+    lanes: &mut [VLane<'_, T>; 4],
+    steps: usize,
+    max_gap: f64,
+    design: bool,
+    resid: bool,
+) -> usize {
+    // SAFETY: forwarded (AVX2, FMA, AVX-512F/VL available; slices checked).
+    unsafe {
+        match (design, resid) {
+            (true, true) => kernel::<V4, T, 4, true, true, false>(lanes, steps, max_gap, false),
+            (true, false) => kernel::<V4, T, 4, true, false, false>(lanes, steps, max_gap, false),
+            (false, true) => kernel::<V4, T, 4, false, true, false>(lanes, steps, max_gap, false),
+            (false, false) => kernel::<V4, T, 4, false, false, false>(lanes, steps, max_gap, false),
         }
     }
 }
@@ -194,11 +243,15 @@ unsafe fn run4<T: IoFloat>(
     // SAFETY: forwarded (AVX2 and FMA available; slices checked).
     unsafe {
         match (design, resid, nt) {
-            (true, true, _) => kernel::<V4, T, 4, true, true, false>(lanes, steps, max_gap),
-            (true, false, _) => kernel::<V4, T, 4, true, false, false>(lanes, steps, max_gap),
-            (false, true, _) => kernel::<V4, T, 4, false, true, false>(lanes, steps, max_gap),
-            (false, false, false) => kernel::<V4, T, 4, false, false, false>(lanes, steps, max_gap),
-            (false, false, true) => kernel::<V4, T, 4, false, false, true>(lanes, steps, max_gap),
+            (true, true, _) => kernel::<V4, T, 4, true, true, false>(lanes, steps, max_gap, true),
+            (true, false, _) => kernel::<V4, T, 4, true, false, false>(lanes, steps, max_gap, true),
+            (false, true, _) => kernel::<V4, T, 4, false, true, false>(lanes, steps, max_gap, true),
+            (false, false, false) => {
+                kernel::<V4, T, 4, false, false, false>(lanes, steps, max_gap, true)
+            }
+            (false, false, true) => {
+                kernel::<V4, T, 4, false, false, true>(lanes, steps, max_gap, true)
+            }
         }
     }
 }
@@ -638,6 +691,7 @@ unsafe fn kernel<
     lanes: &mut [VLane<'_, T>; W],
     steps: usize,
     max_gap: f64,
+    pf: bool,
 ) -> usize {
     // `NT` is chosen by `run` (four f64 lanes with fixed gains); `Lines`
     // writes f64 rows of four lanes.
@@ -689,13 +743,14 @@ unsafe fn kernel<
         let (mut a_last, mut g_last) = (zero, zero);
         let mut k = 0;
         while k + W <= steps {
-            // Prefetch PREFETCH samples ahead in every stream of every lane
+            // With `pf` (all but the Zen 4 form, [`zen4`]):
+            // prefetch PREFETCH samples ahead in every stream of every lane
             // (16 to 20 streams are too many for the hardware prefetchers),
             // once per 64-byte line of f64 samples (every other block of
             // four, every block of eight). Prefetches never fault, so the
             // addresses may lie past the end.
             for l in 0..W {
-                if W == 4 && k % 8 != 0 {
+                if !pf || (W == 4 && k % 8 != 0) {
                     break;
                 }
                 prefetch(tp[l].wrapping_add(k + PREFETCH));
