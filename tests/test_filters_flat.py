@@ -236,6 +236,7 @@ _SWITCHES = (
     "ABKIT_FLAT_AVX2",
     "ABKIT_SHORT_ROWS_FLAT",
     "ABKIT_ROWS16",
+    "ABKIT_ZEN4",
 )
 
 
@@ -274,6 +275,7 @@ np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **res)
     runs = (
         ("on", {}),
         ("avx512", {"ABKIT_FLAT_AVX2": "0"}),  # Zen 4's ragged f64 in the AVX-512 kernel
+        ("nozen4", {"ABKIT_ZEN4": "0"}),  # Zen 4's ragged f64: the AVX2 kernel without AVX-512VL
         ("rows16", {"ABKIT_ROWS16": "1"}),
         ("avx2", {"ABKIT_FLAT_AVX2": "1", "ABKIT_SHORT_ROWS_FLAT": "1"}),
         ("gen", {"ABKIT_FLAT_AVX512": "1", "ABKIT_SHORT_ROWS_FLAT": "1"}),
@@ -466,6 +468,7 @@ def test_flat_kernels_equal_scalar_lanes_bitwise_in_child_processes(tmp_path):
     runs = (
         ("on", {}),
         ("avx512", {"ABKIT_FLAT_AVX2": "0"}),  # Zen 4's ragged f64 in the AVX-512 kernel
+        ("nozen4", {"ABKIT_ZEN4": "0"}),  # Zen 4's ragged f64: the AVX2 kernel without AVX-512VL
         ("gen", {"ABKIT_FLAT_AVX512": "1"}),
         ("flat", {"ABKIT_SHORT_ROWS_FLAT": "1"}),
         ("avx2", {"ABKIT_FLAT_AVX2": "1", "ABKIT_SHORT_ROWS_FLAT": "1"}),

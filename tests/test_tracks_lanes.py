@@ -282,7 +282,7 @@ def _on_off(code, tmp_path, on_env):
         e = dict(os.environ)
         e.pop("ABKIT_DISABLE_SIMD", None)
         e.pop("ABKIT_TRACKS_AVX512", None)
-        e.pop("ABKIT_TRACKS_ZEN4", None)
+        e.pop("ABKIT_ZEN4", None)
         e.update(env)
         subprocess.run([sys.executable, "-c", code, str(tmp_path), tag, here], check=True, env=e, cwd=here)
     return np.load(tmp_path / "on.npz"), np.load(tmp_path / "off.npz")
@@ -380,9 +380,9 @@ for case, kw, gaps in (("a", dict(), 0.0), ("b", dict(max_gap=20.0), 0.002)):
     out[case + "_rect_x"] = rect.state.x
 np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **out)
 """
-    # ABKIT_TRACKS_ZEN4=0: on a Zen 4 the four lanes write ordinary stores
-    # by default; this keeps their streamed lines checked there too
-    for on_env in ({}, {"ABKIT_TRACKS_ZEN4": "0"}):
+    # ABKIT_ZEN4=0: on a Zen 4 the four lanes write ordinary stores by
+    # default; this keeps their streamed lines checked there too
+    for on_env in ({}, {"ABKIT_ZEN4": "0"}):
         on, off = _on_off(code, tmp_path, on_env)
         assert sorted(on.files) == sorted(off.files) and len(on.files) == 8
         for k in on.files:

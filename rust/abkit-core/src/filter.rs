@@ -2454,6 +2454,29 @@ fn tracks_flat_kernel<T: 'static>(kind: FlatKernel) -> FlatKernel {
     }
 }
 
+/// Whether the AVX2 kernels that run on an AMD Zen 4 take their Zen 4
+/// forms: AMD family 19h with AVX2, FMA, AVX-512F and AVX-512VL, unless the
+/// environment variable `ABKIT_ZEN4` is `0` (read once). The forms compile
+/// the same kernels with AVX-512VL, so that they have 32 vector registers
+/// instead of 16 (fewer spills; the same operations and so the same bits):
+/// the AVX2 flat kernel of ragged `f64` batches ([`tracks_flat_kernel`],
+/// `flatv::ab_flat_avx2`) and the irregular-timestamp lanes
+/// ([`crate::ragged_simd::zen4`], which also store and prefetch
+/// differently there). Measured on a Zen 4 EPYC guest, docs/benchmarks.md,
+/// session 31.
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn zen4_forms() -> bool {
+    static Z: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *Z.get_or_init(|| {
+        std::env::var_os("ABKIT_ZEN4").is_none_or(|v| v != "0")
+            && amd_family() == Some(0x19)
+            && is_x86_feature_detected!("avx2")
+            && is_x86_feature_detected!("fma")
+            && is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("avx512vl")
+    })
+}
+
 /// The CPU family (base + extended, as `lscpu` prints it) of an AMD CPU,
 /// `None` on other vendors.
 #[cfg(target_arch = "x86_64")]

@@ -190,26 +190,20 @@ unsafe fn run8<T: IoFloat>(
     }
 }
 
-/// Whether the four lanes take their AMD Zen 4 form: on AMD family 19h
-/// with AVX-512F and AVX-512VL (Zen 4; `ABKIT_TRACKS_ZEN4=0` turns it off),
-/// the same kernel compiled with AVX-512VL (32 vector registers instead of
-/// 16: fewer spills; the same operations, so the same bits), with ordinary
-/// stores instead of the streamed lines of the fixed-gain law, and without
-/// software prefetches. Measured on a Zen 4 EPYC guest (`irrbench`, 10^7
-/// samples from memory, ns per sample, docs/benchmarks.md, session 31):
-/// fixed gains 1.65 -> 1.20, design law 1.87-2.0 -> 1.80-1.86. There the
-/// streamed lines were slower than ordinary stores (1.65 against 1.27-1.29)
-/// and the prefetches cost more than they saved (1.27-1.31 against
-/// 1.19-1.21), unlike on the Zen 3 and the Xeon they were tuned on.
+/// Whether the four lanes take their AMD Zen 4 form
+/// ([`crate::filter::zen4_forms`]: AMD family 19h with AVX-512F and -VL,
+/// unless `ABKIT_ZEN4=0`): the same kernel compiled with AVX-512VL (32
+/// vector registers instead of 16: fewer spills; the same operations, so
+/// the same bits), with ordinary stores instead of the streamed lines of
+/// the fixed-gain law, and without software prefetches. Measured on a Zen 4
+/// EPYC guest (`irrbench`, 10^7 samples from memory, ns per sample,
+/// docs/benchmarks.md, session 31): fixed gains 1.59-1.63 -> 1.15-1.24,
+/// design law 1.94-1.97 -> 1.70-1.75. There the streamed lines were slower
+/// than ordinary stores (1.65 against 1.27-1.29) and the prefetches cost
+/// more than they saved (1.27-1.31 against 1.19-1.21), unlike on the Zen 3
+/// and the Xeon they were tuned on.
 pub(crate) fn zen4() -> bool {
-    use std::sync::OnceLock;
-    static Z: OnceLock<bool> = OnceLock::new();
-    *Z.get_or_init(|| {
-        std::env::var_os("ABKIT_TRACKS_ZEN4").is_none_or(|v| v != "0")
-            && crate::filter::amd_family() == Some(0x19)
-            && is_x86_feature_detected!("avx512f")
-            && is_x86_feature_detected!("avx512vl")
-    })
+    crate::filter::zen4_forms()
 }
 
 #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
