@@ -164,30 +164,39 @@ def test_vector_lanes_equal_scalar_lanes_bitwise(tmp_path):
     import subprocess
     import sys
 
+    # Also one long track (split into segments run in the row lanes) and,
+    # on an AMD Zen 4, ABKIT_ZEN4=0: float64 rows in the AVX-512 lanes
+    # instead of the AVX2 lanes' Zen 4 form (the default there).
     rng = np.random.default_rng(21)
     for dt in (np.float64, np.float32):
         z = _z(rng, 37, 531, "random", dt)
         np.save(tmp_path / f"z_{np.dtype(dt).name}.npy", z)
+        z1 = np.cumsum(rng.normal(size=150_001)).astype(dt)
+        z1[rng.random(z1.size) < 0.01] = np.nan
+        np.save(tmp_path / f"z1_{np.dtype(dt).name}.npy", z1)
     code = (
         "import sys, numpy as np, abkit\n"
         "for n in ('float64', 'float32'):\n"
         "    z = np.load(sys.argv[1] + f'/z_{n}.npy')\n"
+        "    z1 = np.load(sys.argv[1] + f'/z1_{n}.npy')\n"
         "    np.save(sys.argv[1] + f'/s_{n}_' + sys.argv[2] + '.npy', abkit.AlphaBetaFilter(0.45, 0.12, 0.3).run(z).states)\n"
+        "    np.save(sys.argv[1] + f'/l_{n}_' + sys.argv[2] + '.npy', abkit.AlphaBetaFilter(0.45, 0.12, 0.3).run(z1).states)\n"
         "    np.save(sys.argv[1] + f'/g_{n}_' + sys.argv[2] + '.npy', abkit.AlphaBetaGammaFilter(0.45, 0.12, 0.01, 0.3).run(z).states)\n"
     )
-    for tag, env in (("on", {}), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
+    runs = (("on", {}), ("nozen4", {"ABKIT_ZEN4": "0"}), ("off", {"ABKIT_DISABLE_SIMD": "1"}))
+    for tag, env in runs:
         e = dict(os.environ)
         e.pop("ABKIT_DISABLE_SIMD", None)
+        e.pop("ABKIT_ZEN4", None)
         e.update(env)
         subprocess.run([sys.executable, "-c", code, str(tmp_path), tag], check=True, env=e)
-    for n in ("float64", "float32"):
-        on = np.load(tmp_path / f"s_{n}_on.npy")
-        off = np.load(tmp_path / f"s_{n}_off.npy")
-        assert on.dtype == np.dtype(n)
-        assert np.array_equal(on, off, equal_nan=True)
-        on = np.load(tmp_path / f"g_{n}_on.npy")
-        off = np.load(tmp_path / f"g_{n}_off.npy")
-        assert on.shape[0] == 3 and np.array_equal(on, off, equal_nan=True)
+    for tag in ("on", "nozen4"):
+        for n in ("float64", "float32"):
+            for kind, comps in (("s", 2), ("l", 2), ("g", 3)):
+                on = np.load(tmp_path / f"{kind}_{n}_{tag}.npy")
+                off = np.load(tmp_path / f"{kind}_{n}_off.npy")
+                assert on.dtype == np.dtype(n) and on.shape[0] == comps
+                assert np.array_equal(on, off, equal_nan=True), (tag, kind, n)
 
 
 # ---------------------------------------------------------------------------

@@ -577,6 +577,11 @@ fn ab_lanes_entry<T: IoFloat, const FMA: bool>(
 ) {
     #[cfg(target_arch = "x86_64")]
     {
+        if FMA && rows_zen4::<T>() && simd::fits::<T>(0, n) {
+            // SAFETY: `rows_zen4` checked AVX2, FMA, AVX-512F and -VL.
+            unsafe { avx2::ab_lanes8_zen4(c, x, v, 0, n, z, xs, vs, None, nt) };
+            return;
+        }
         if FMA && simd::available() && simd::fits::<T>(0, n) {
             // SAFETY: `available()` checked AVX-512F and FMA on this CPU.
             unsafe { simd::ab_lanes8(c, x, v, 0, n, z, xs, vs, None, nt) };
@@ -1012,7 +1017,10 @@ fn ab_group<T: IoFloat, const FMA: bool>(
         && (simd::available() || simd::avx2_available())
     {
         let nt = streamed::<T>(2 * z.n_tracks * n * std::mem::size_of::<T>(), true);
-        if simd::available() {
+        if rows_zen4::<T>() {
+            // SAFETY: `rows_zen4` checked AVX2, FMA, AVX-512F and -VL.
+            unsafe { avx2::ab_lanes8_zen4(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead, nt) };
+        } else if simd::available() {
             // SAFETY: `available()` checked AVX-512F and FMA on this CPU.
             unsafe { simd::ab_lanes8(&c, &mut x, &mut v, kmax, n, rows, xs, vs, ahead, nt) };
         } else {
@@ -2460,7 +2468,8 @@ fn tracks_flat_kernel<T: 'static>(kind: FlatKernel) -> FlatKernel {
 /// the same kernels with AVX-512VL, so that they have 32 vector registers
 /// instead of 16 (fewer spills; the same operations and so the same bits):
 /// the AVX2 flat kernel of ragged `f64` batches ([`tracks_flat_kernel`],
-/// `flatv::ab_flat_avx2`) and the irregular-timestamp lanes
+/// `flatv::ab_flat_avx2`), the AVX2 row lanes, which then also take `f64`
+/// rows from the AVX-512 ones ([`rows_zen4`]), and the irregular-timestamp lanes
 /// ([`crate::ragged_simd::zen4`], which also store and prefetch
 /// differently there). Measured on a Zen 4 EPYC guest, docs/benchmarks.md,
 /// session 31.
@@ -2475,6 +2484,18 @@ pub(crate) fn zen4_forms() -> bool {
             && is_x86_feature_detected!("avx512f")
             && is_x86_feature_detected!("avx512vl")
     })
+}
+
+/// Whether the alpha-beta row lanes of `T` run in the AVX2 kernel's Zen 4
+/// form ([`zen4_forms`]; `f64` only) instead of the AVX-512 lanes: on the
+/// Zen 4 EPYC guest (`rowbench`, ns per sample, minimum / median of 5
+/// alternated runs) `f64` 1,000 x 10,000 0.642 / 0.672 -> 0.611 / 0.623 and
+/// one track of 10^7 (split into segments) 0.690 / 0.720 -> 0.639 / 0.644,
+/// while `f32` was slower that way (0.55 -> 0.75; docs/benchmarks.md,
+/// session 31). The same bits either way.
+#[cfg(target_arch = "x86_64")]
+fn rows_zen4<T: 'static>() -> bool {
+    simd::is_f64::<T>() && zen4_forms()
 }
 
 /// The CPU family (base + extended, as `lscpu` prints it) of an AMD CPU,

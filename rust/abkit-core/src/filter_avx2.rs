@@ -148,6 +148,48 @@ pub(super) unsafe fn ab_lanes8<T: IoFloat>(
     ahead: Option<(usize, usize)>,
     nt: bool,
 ) {
+    // SAFETY: forwarded.
+    unsafe { ab_lanes8_body(c, x_out, v_out, k0, n, z, xs, vs, ahead, nt) }
+}
+
+/// [`ab_lanes8`] compiled with AVX-512VL too (32 registers; the same
+/// operations, so the same bits): the `f64` row lanes on an AMD Zen 4
+/// (`filter::rows_zen4`).
+///
+/// # Safety
+/// The CPU supports AVX2, FMA, AVX-512F and AVX-512VL.
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+pub(super) unsafe fn ab_lanes8_zen4<T: IoFloat>(
+    c: &[AbConst; AB_LANES],
+    x_out: &mut [f64; AB_LANES],
+    v_out: &mut [f64; AB_LANES],
+    k0: usize,
+    n: usize,
+    z: [&[T]; AB_LANES],
+    xs: [&mut [T]; AB_LANES],
+    vs: [&mut [T]; AB_LANES],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
+    // SAFETY: forwarded.
+    unsafe { ab_lanes8_body(c, x_out, v_out, k0, n, z, xs, vs, ahead, nt) }
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn ab_lanes8_body<T: IoFloat>(
+    c: &[AbConst; AB_LANES],
+    x_out: &mut [f64; AB_LANES],
+    v_out: &mut [f64; AB_LANES],
+    k0: usize,
+    n: usize,
+    z: [&[T]; AB_LANES],
+    xs: [&mut [T]; AB_LANES],
+    vs: [&mut [T]; AB_LANES],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
     if !fits::<T>(k0, n)
         || z.iter().any(|r| r.len() < n)
         || xs.iter().chain(vs.iter()).any(|r| r.len() < n)
