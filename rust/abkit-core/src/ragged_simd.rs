@@ -201,7 +201,9 @@ unsafe fn run8<T: IoFloat>(
 /// design law 1.94-1.97 -> 1.70-1.75. There the streamed lines were slower
 /// than ordinary stores (1.65 against 1.27-1.29) and the prefetches cost
 /// more than they saved (1.27-1.31 against 1.19-1.21), unlike on the Zen 3
-/// and the Xeon they were tuned on.
+/// and the Xeon they were tuned on. The design law without residuals
+/// also takes the software-pipelined [`kernel_design_pipelined`] there
+/// (1.82 -> 1.63-1.66 from memory).
 pub(crate) fn zen4() -> bool {
     crate::filter::zen4_forms()
 }
