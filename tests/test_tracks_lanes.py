@@ -316,10 +316,11 @@ for kind in ("design", "fixed"):
             out[f"{kind}_{np.dtype(dtype).name}_{case}_rect"] = rect.states
 np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **out)
 """
-    # "on": the default lanes, and the 8-lane AVX-512 build where the CPU
-    # has it (opt-in; the default there is the 4-lane one, in its Zen 4
-    # form on AMD family 19h), so that an AVX-512 machine checks both
-    for on_env in ({}, {"ABKIT_TRACKS_AVX512": "1"}):
+    # "on": the default lanes, the 8-lane AVX-512 build where the CPU has
+    # it (opt-in; the default there is the 4-lane one, in its Zen 4 form on
+    # AMD family 19h), and on a Zen 4 the 4 lanes' other form
+    # (ABKIT_ZEN4=0), so that an AVX-512 machine checks them all
+    for on_env in ({}, {"ABKIT_TRACKS_AVX512": "1"}, {"ABKIT_ZEN4": "0"}):
         on, off = _on_off(code, tmp_path, on_env)
         assert sorted(on.files) == sorted(off.files) and len(on.files) > 40
         for k in on.files:

@@ -707,8 +707,9 @@ unsafe fn tblock<V: Vd<W>, const W: usize>(
 
 /// The design law's gains `(alpha, rate gain)` of a block's steps
 /// ([`design_gains`] with `sr = sqrt(ratio)`, `c2 = 2 sqrt(ratio)`),
-/// reusing the last step's gains `(a_last, g_last)` where dt equals
-/// `d_last` in every slot.
+/// reusing the gains of the last step computed where its dt equals this
+/// step's in every slot (`last`: that dt and its gains; a NaN dt matches
+/// nothing).
 ///
 /// # Safety
 /// The CPU features of V.
