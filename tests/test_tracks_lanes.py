@@ -273,19 +273,22 @@ def test_streaming_chunks_equal_one_call(kind):
     assert np.array_equal(st.t_last, full.state.t_last, equal_nan=True)
 
 
-def _on_off(code, tmp_path, on_env):
-    """Run `code` (writes its arrays to argv[1]/argv[2].npz) in two child
-    processes: with `on_env` (vector lanes) and with ABKIT_DISABLE_SIMD=1
-    (scalar lanes); the two saved archives."""
+def _on_off(code, tmp_path, on_envs):
+    """Run `code` (writes its arrays to argv[1]/argv[2].npz) in child
+    processes: once with each environment of `on_envs` (vector lanes) and
+    once with ABKIT_DISABLE_SIMD=1 (scalar lanes); the archives of the
+    former (in order) and the latter."""
     here = os.path.dirname(os.path.abspath(__file__))
-    for tag, env in (("on", on_env), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
+    runs = [(f"on{i}", env) for i, env in enumerate(on_envs)] + [("off", {"ABKIT_DISABLE_SIMD": "1"})]
+    for tag, env in runs:
         e = dict(os.environ)
         e.pop("ABKIT_DISABLE_SIMD", None)
         e.pop("ABKIT_TRACKS_AVX512", None)
         e.pop("ABKIT_ZEN4", None)
         e.update(env)
         subprocess.run([sys.executable, "-c", code, str(tmp_path), tag, here], check=True, env=e, cwd=here)
-    return np.load(tmp_path / "on.npz"), np.load(tmp_path / "off.npz")
+    ons = [np.load(tmp_path / f"{tag}.npz") for tag, _ in runs[:-1]]
+    return ons, np.load(tmp_path / "off.npz")
 
 
 def test_vector_lanes_equal_scalar_lanes_in_another_process(tmp_path):
@@ -320,8 +323,9 @@ np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **out)
     # it (opt-in; the default there is the 4-lane one, in its Zen 4 form on
     # AMD family 19h), and on a Zen 4 the 4 lanes' other form
     # (ABKIT_ZEN4=0), so that an AVX-512 machine checks them all
-    for on_env in ({}, {"ABKIT_TRACKS_AVX512": "1"}, {"ABKIT_ZEN4": "0"}):
-        on, off = _on_off(code, tmp_path, on_env)
+    on_envs = ({}, {"ABKIT_TRACKS_AVX512": "1"}, {"ABKIT_ZEN4": "0"})
+    ons, off = _on_off(code, tmp_path, on_envs)
+    for on_env, on in zip(on_envs, ons):
         assert sorted(on.files) == sorted(off.files) and len(on.files) > 40
         for k in on.files:
             assert on[k].dtype == off[k].dtype, (on_env, k)
@@ -383,8 +387,9 @@ np.savez(sys.argv[1] + "/" + sys.argv[2] + ".npz", **out)
 """
     # ABKIT_ZEN4=0: on a Zen 4 the four lanes write ordinary stores by
     # default; this keeps their streamed lines checked there too
-    for on_env in ({}, {"ABKIT_ZEN4": "0"}):
-        on, off = _on_off(code, tmp_path, on_env)
+    on_envs = ({}, {"ABKIT_ZEN4": "0"})
+    ons, off = _on_off(code, tmp_path, on_envs)
+    for on_env, on in zip(on_envs, ons):
         assert sorted(on.files) == sorted(off.files) and len(on.files) == 8
         for k in on.files:
             assert np.array_equal(on[k], off[k], equal_nan=True), (on_env, k)

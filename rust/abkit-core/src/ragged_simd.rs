@@ -705,11 +705,34 @@ unsafe fn tblock<V: Vd<W>, const W: usize>(
     }
 }
 
-/// The design law's gains `(alpha, rate gain)` of a block's steps
-/// ([`design_gains`] with `sr = sqrt(ratio)`, `c2 = 2 sqrt(ratio)`),
-/// reusing the gains of the last step computed where its dt equals this
-/// step's in every slot (`last`: that dt and its gains; a NaN dt matches
-/// nothing).
+/// The design law's gains `(alpha, rate gain)` at the step `d` of every
+/// slot ([`design_gains`] with `sr = sqrt(ratio)`, `c2 = 2 sqrt(ratio)`),
+/// reusing the gains of the last step computed where its dt equals `d` in
+/// every slot (`last`: that dt and its gains; a NaN dt matches nothing):
+/// timestamps on a grid (AIS reports in whole seconds, 1 Hz GNSS logs)
+/// compute them once; the same operations on the same dt give the same
+/// bits.
+///
+/// # Safety
+/// The CPU features of V.
+#[inline(always)]
+unsafe fn design_step<V: Vd<W>, const W: usize>(
+    d: V,
+    sr: V,
+    c2: V,
+    last: &mut (V, V, V),
+) -> (V, V) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if !V::all(d.equal(last.0)) {
+            let (a, g) = design_gains::<V, W>(sr, c2, d);
+            *last = (d, a, g);
+        }
+        (last.1, last.2)
+    }
+}
+
+/// [`design_step`] for each step of a block.
 ///
 /// # Safety
 /// The CPU features of V.
@@ -725,15 +748,78 @@ unsafe fn design_block<V: Vd<W>, const W: usize>(
         let mut a = [sr; W];
         let mut g = [sr; W];
         for j in 0..W {
-            let d = dt[j];
-            if !V::all(d.equal(last.0)) {
-                let (aa, gg) = design_gains::<V, W>(sr, c2, d);
-                *last = (d, aa, gg);
-            }
-            a[j] = last.1;
-            g[j] = last.2;
+            (a[j], g[j]) = design_step::<V, W>(dt[j], sr, c2, last);
         }
         (a, g)
+    }
+}
+
+/// The measurements of the block at `k`, as "this step of every lane", and
+/// (if `check`) whether none is missing (NaN): such a block skips the
+/// coasting blends of [`vstep`] (they would select the measured values:
+/// the same bits).
+///
+/// # Safety
+/// The CPU features of V; every row of `zp` has `k + W` readable values.
+#[inline(always)]
+unsafe fn zblock<V: Vd<W>, T: 'static, const W: usize>(
+    zp: &[*const T; W],
+    k: usize,
+    check: bool,
+) -> ([V; W], bool) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        let mut zv: [V; W] = std::array::from_fn(|l| V::load(zp[l].add(k)));
+        V::transpose(&mut zv);
+        let clean = check && {
+            let mut m = zv[0].ord();
+            for zj in &zv[1..] {
+                m = V::and(m, zj.ord());
+            }
+            V::all(m)
+        };
+        (zv, clean)
+    }
+}
+
+/// One step of every slot, the scalar `ab_update::<true>`: predict with
+/// `d`, update with gains `(a, g)` on the measurement `zj`, or coast where
+/// it is NaN (`clean`: none is). Returns the residual (NaN where coasting;
+/// only computed if `RESID`).
+///
+/// # Safety
+/// The CPU features of V.
+#[inline(always)]
+unsafe fn vstep<V: Vd<W>, const W: usize, const RESID: bool>(
+    (d, a, g, zj): (V, V, V, V),
+    x: &mut V,
+    v: &mut V,
+    clean: bool,
+) -> V {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        let (zero, one) = (V::splat(0.0), V::splat(1.0));
+        let xpred = d.fmadd(*v, *x);
+        if clean {
+            let w = g.fmadd(zj, *v);
+            *x = one.sub(a).fmadd(xpred, a.mul(zj));
+            *v = g.fnmadd(xpred, w);
+            if RESID {
+                return zj.sub(xpred);
+            }
+        } else {
+            let valid = zj.ord();
+            let zz = V::blend(valid, zero, zj);
+            let c1 = V::blend(valid, one, one.sub(a));
+            let gm = V::blend(valid, zero, g);
+            let w = gm.fmadd(zz, *v);
+            *x = c1.fmadd(xpred, a.mul(zz));
+            *v = gm.fnmadd(xpred, w);
+            if RESID {
+                return V::blend(valid, V::splat(f64::NAN), zj.sub(xpred));
+            }
+        }
+        zero
     }
 }
 
@@ -771,7 +857,6 @@ unsafe fn kernel_design_pipelined<V: Vd<W>, T: IoFloat, const W: usize>(
         let mut v = V::from_lanes(&std::array::from_fn(|l| lanes[l].v));
         let mut t_last = V::from_lanes(&std::array::from_fn(|l| lanes[l].t_last));
         let zero = V::splat(0.0);
-        let one = V::splat(1.0);
         let gap = V::splat(max_gap.min(f64::MAX));
         let zp: [*const T; W] = std::array::from_fn(|l| lanes[l].z.as_ptr());
         let tp: [*const f64; W] = std::array::from_fn(|l| lanes[l].t.as_ptr());
@@ -798,36 +883,11 @@ unsafe fn kernel_design_pipelined<V: Vd<W>, T: IoFloat, const W: usize>(
                     (next, dt_n, t_n) = (true, d, tl);
                 }
             }
-            let mut zv: [V; W] = std::array::from_fn(|l| V::load(zp[l].add(k)));
-            V::transpose(&mut zv);
-            // A block without missed measurements skips the coasting
-            // blends (they would select the measured values: same bits).
-            let clean = {
-                let mut m = zv[0].ord();
-                for zj in &zv[1..] {
-                    m = V::and(m, zj.ord());
-                }
-                V::all(m)
-            };
+            let (zv, clean) = zblock::<V, T, W>(&zp, k, true);
             let mut xo = [zero; W];
             let mut vo = [zero; W];
             for j in 0..W {
-                let (d, a, g, zj) = (dt[j], ga[j], gg[j], zv[j]);
-                // ab_update::<true>.
-                let xpred = d.fmadd(v, x);
-                if clean {
-                    let w = g.fmadd(zj, v);
-                    x = one.sub(a).fmadd(xpred, a.mul(zj));
-                    v = g.fnmadd(xpred, w);
-                } else {
-                    let valid = zj.ord();
-                    let zz = V::blend(valid, zero, zj);
-                    let c1 = V::blend(valid, one, one.sub(a));
-                    let gm = V::blend(valid, zero, g);
-                    let w = gm.fmadd(zz, v);
-                    x = c1.fmadd(xpred, a.mul(zz));
-                    v = gm.fnmadd(xpred, w);
-                }
+                vstep::<V, W, false>((dt[j], ga[j], gg[j], zv[j]), &mut x, &mut v, clean);
                 xo[j] = x;
                 vo[j] = v;
             }
@@ -890,7 +950,6 @@ unsafe fn kernel<
         let mut v = V::from_lanes(&std::array::from_fn(|l| lanes[l].v));
         let mut t_last = V::from_lanes(&std::array::from_fn(|l| lanes[l].t_last));
         let zero = V::splat(0.0);
-        let one = V::splat(1.0);
         let nan = V::splat(f64::NAN);
         // d <= min(max_gap, MAX) also excludes an infinite d.
         let gap = V::splat(max_gap.min(f64::MAX));
@@ -914,8 +973,7 @@ unsafe fn kernel<
         // operations on the same dt give the same bits. NaN: no first step
         // matches. (Fixed gains keep their one division per step: carrying
         // the last gains made that loop 20 % slower.)
-        let mut d_last = nan;
-        let (mut a_last, mut g_last) = (zero, zero);
+        let mut last = (nan, zero, zero);
         let mut k = 0;
         while k + W <= steps {
             // With `pf` (all but the Zen 4 form, [`zen4`]):
@@ -939,73 +997,27 @@ unsafe fn kernel<
                     prefetch(rp[l].wrapping_add(k + PREFETCH));
                 }
             }
-            let mut tv: [V; W] = std::array::from_fn(|l| V::load(tp[l].add(k)));
-            V::transpose(&mut tv);
-            // dt of every step; the block runs only if all are plain steps:
-            // 0 < dt <= max_gap, dt finite.
-            let mut dt = [zero; W];
-            let mut prev = t_last;
-            let mut ok = zero.le(zero);
-            for j in 0..W {
-                let d = tv[j].sub(prev);
-                ok = V::and(ok, V::and(d.gt(zero), d.le(gap)));
-                dt[j] = d;
-                prev = tv[j];
-            }
-            if !V::all(ok) {
+            // The block runs only if all its steps are plain steps.
+            let (ok, dt, t_blk) = tblock::<V, W>(&tp, k, t_last, gap);
+            if !ok {
                 break;
             }
-            let mut zv: [V; W] = std::array::from_fn(|l| V::load(zp[l].add(k)));
-            V::transpose(&mut zv);
-            // A block without missed measurements skips the coasting
-            // blends (they would select the measured values: same bits).
-            let clean = DESIGN && {
-                let mut m = zv[0].ord();
-                for zj in &zv[1..] {
-                    m = V::and(m, zj.ord());
-                }
-                V::all(m)
-            };
+            let (zv, clean) = zblock::<V, T, W>(&zp, k, DESIGN);
             let mut xo = [zero; W];
             let mut vo = [zero; W];
             let mut eo = [zero; W];
             for j in 0..W {
                 let d = dt[j];
                 let (a, g) = if DESIGN {
-                    if !V::all(d.equal(d_last)) {
-                        (a_last, g_last) = design_gains::<V, W>(p0, p1, d);
-                        d_last = d;
-                    }
-                    (a_last, g_last)
+                    design_step::<V, W>(d, p0, p1, &mut last)
                 } else {
                     (p0, p1.div(d))
                 };
-                // ab_update::<true>.
-                let zj = zv[j];
-                let xpred = d.fmadd(v, x);
-                if clean {
-                    let w = g.fmadd(zj, v);
-                    x = one.sub(a).fmadd(xpred, a.mul(zj));
-                    v = g.fnmadd(xpred, w);
-                    if RESID {
-                        eo[j] = zj.sub(xpred);
-                    }
-                } else {
-                    let valid = zj.ord();
-                    let zz = V::blend(valid, zero, zj);
-                    let c1 = V::blend(valid, one, one.sub(a));
-                    let gg = V::blend(valid, zero, g);
-                    let w = gg.fmadd(zz, v);
-                    x = c1.fmadd(xpred, a.mul(zz));
-                    v = gg.fnmadd(xpred, w);
-                    if RESID {
-                        eo[j] = V::blend(valid, nan, zj.sub(xpred));
-                    }
-                }
+                eo[j] = vstep::<V, W, RESID>((d, a, g, zv[j]), &mut x, &mut v, clean);
                 xo[j] = x;
                 vo[j] = v;
             }
-            t_last = tv[W - 1];
+            t_last = t_blk;
             V::transpose(&mut xo);
             V::transpose(&mut vo);
             if let Some(lines) = lines.as_mut() {
