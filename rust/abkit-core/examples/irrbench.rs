@@ -38,7 +38,7 @@ fn bench<L: GainLaw<2, 1>>(
         drop_duplicates: false,
     };
     let n_tracks = off.len() - 1;
-    let mut st = vec![TrackState::default(); n_tracks];
+    let mut st = thp_vec(n_tracks, |_| TrackState::default());
     let mut counts = vec![[0i64; 2]; n_tracks];
     let mut states = thp_vec(2 * z.len(), |_| 0.0f64);
     let zs = Samples::flat(z, 1)?;

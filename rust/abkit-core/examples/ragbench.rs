@@ -61,7 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         drop_duplicates: false,
     };
     let n_tracks = off.len() - 1;
-    let mut st = vec![TrackState::default(); n_tracks];
+    let mut st = thp_vec(n_tracks, |_| TrackState::default());
     let mut counts = vec![[0i64; 2]; n_tracks];
     let mut states = thp_vec(2 * n, |_| 0.0f64);
     let zs = Samples::flat(&z, 1)?;

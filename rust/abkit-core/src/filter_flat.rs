@@ -237,6 +237,11 @@ impl<T: IoFloat> Starter<'_, '_, T> {
             super::prefetch(p);
             super::prefetch(p.wrapping_byte_add(64));
         }
+        // And the offsets two lines ahead: each slot reads its own run of
+        // them, a line per eight tracks, which the hardware prefetcher
+        // misses too (rows of 100 from memory: the bookkeeping's ticks
+        // -14 %; docs/benchmarks.md, session 33).
+        super::prefetch(off.as_ptr().wrapping_add(j + 16));
         let st = &mut states[j];
         // The usual start (a fresh track, its first one or two samples
         // valid) runs in the vector steps: the same values as the scalar
@@ -353,7 +358,7 @@ impl<T: IoFloat> Starter<'_, '_, T> {
     /// `p`: sample `pos + p` is stored; staged start-up outputs included)
     /// and whether the slot's region ends in it.
     #[allow(clippy::too_many_arguments)]
-    #[inline]
+    #[inline(always)]
     pub(super) fn block(
         &mut self,
         s: &mut Slot,
