@@ -122,6 +122,21 @@ pub(super) struct Slot {
     pub(super) vs1: isize,
 }
 
+impl Slot {
+    /// Whole blocks of `sbi` samples from `pos` in which the slot has only
+    /// running samples to store (no start-up output, pending injection or
+    /// vector start, or end of its track); 0 if the block at `pos` has any.
+    #[inline(always)]
+    pub(super) fn quiet_blocks(&self, sbi: isize) -> isize {
+        let lim = (self.end - 1).min(self.inj).min(self.vs0).min(self.vs1);
+        if self.pos >= self.skip && lim >= self.pos + sbi {
+            (lim - self.pos) / sbi
+        } else {
+            0
+        }
+    }
+}
+
 /// Which fresh tracks start in the flat kernel's vector steps, and with
 /// whose arithmetic (each the same bits as its scalar start-up).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -623,12 +638,7 @@ pub(super) unsafe fn ab_flat<T: IoFloat>(
         // they compute on a line of zeros and store nothing.
         let mut n_fast = isize::MAX;
         for s in slots.iter().filter(|s| s.busy) {
-            let lim = (s.end - 1).min(s.inj).min(s.vs0).min(s.vs1);
-            n_fast = if s.pos >= s.skip && lim >= s.pos + sbi {
-                n_fast.min((lim - s.pos) / sbi)
-            } else {
-                0
-            };
+            n_fast = n_fast.min(s.quiet_blocks(sbi));
             if n_fast == 0 {
                 break;
             }

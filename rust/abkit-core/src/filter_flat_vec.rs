@@ -556,12 +556,7 @@ unsafe fn kernel<
         // they compute on a line of zeros and store into a scratch line.
         let mut n_fast = isize::MAX;
         for s in slots.iter().filter(|s| s.busy) {
-            let lim = (s.end - 1).min(s.inj).min(s.vs0).min(s.vs1);
-            n_fast = if s.pos >= s.skip && lim >= s.pos + sbi {
-                n_fast.min((lim - s.pos) / sbi)
-            } else {
-                0
-            };
+            n_fast = n_fast.min(s.quiet_blocks(sbi));
             if n_fast == 0 {
                 break;
             }
@@ -648,14 +643,9 @@ unsafe fn kernel<
             // no bookkeeping: its whole line is stored (as `block` would
             // find). Rows of 100 from memory: the bookkeeping's ticks -45 %
             // with `block` inlined (docs/benchmarks.md, session 33).
-            if s.busy {
-                let lim = (s.end - 1).min(s.inj).min(s.vs0).min(s.vs1);
-                if s.pos >= s.skip && lim >= s.pos + sbi {
-                    masks[l] = full;
-                    continue;
-                }
-            }
-            if s.busy {
+            if s.busy && s.quiet_blocks(sbi) > 0 {
+                masks[l] = full;
+            } else if s.busy {
                 (masks[l], done[l]) = cx.block(
                     s,
                     l,
