@@ -148,6 +148,27 @@ def test_short_rows_large_output_streamed(dtype, ntr, n):
 
 @pytest.mark.parametrize(
     "dtype,ntr,n",
+    [(np.float64, 6_000, 256), (np.float64, 1_500, 1_024), (np.float64, 400, 4_096), (np.float32, 3_000, 512), (np.float64, 7_001, 200)],
+)
+def test_aliased_and_short_rows_beyond_the_l3_bit_identical(dtype, ntr, n):
+    # Batches of >= 32 MiB (z and outputs): rows a multiple of 2 KiB long
+    # with streamed outputs run in the AVX2 flat kernel (AVX2-only CPUs, and
+    # float64 on an AMD Zen 4, where short rows take it too); every row
+    # equals the scalar row kernel's (residuals on) bit for bit, for any
+    # thread count.
+    rng = np.random.default_rng(31)
+    z = _z(rng, (ntr, n), "random", dtype)
+    f = AlphaBetaFilter(0.42, 0.11, 1.0)
+    big = f.run(z, threads=1)
+    idx = np.r_[0:9, ntr // 2 : ntr // 2 + 17, ntr - 10 : ntr]
+    scalar = f.run(z[idx], return_residuals=True)
+    assert np.array_equal(big.states[:, idx], scalar.states, equal_nan=True)
+    assert np.array_equal(big.state._packed[idx], scalar.state._packed, equal_nan=True)
+    assert np.array_equal(f.run(z, threads=2).states, big.states, equal_nan=True)
+
+
+@pytest.mark.parametrize(
+    "dtype,ntr,n",
     [(np.float64, 30_000, 20), (np.float64, 30_000, 70), (np.float64, 230_000, 20), (np.float32, 30_000, 60), (np.float32, 70_000, 9)],
 )
 def test_short_rows_in_memory_bit_identical(dtype, ntr, n):

@@ -2055,8 +2055,20 @@ fn ab_flat_batch<T: IoFloat>(
     let (nt_, n) = (z.n_tracks, z.n_samples);
     let total = nt_.checked_mul(n)?;
     let rows_ok = z.s_sample == 1 && (z.s_track == n as isize || nt_ == 1);
-    let kind = flat_kernel()?;
+    let cpu_kind = flat_kernel()?;
     let nt = streamed::<T>(2 * total * std::mem::size_of::<T>(), true);
+    // The flat kernel of the rows: on an AMD Zen 4, batches beyond the L3
+    // take the AVX2 instance in `f64` as ragged batches do
+    // ([`tracks_flat_kernel`]), with its row lengths and its routing of
+    // aliased rows ([`ZEN4_ROWS_AVX2_MIN_BYTES`]).
+    let kind = if total
+        .checked_mul(3 * std::mem::size_of::<T>())
+        .is_some_and(|b| b >= ZEN4_ROWS_AVX2_MIN_BYTES)
+    {
+        tracks_flat_kernel::<T>(cpu_kind)
+    } else {
+        cpu_kind
+    };
     if !simd::fits::<T>(0, 32)
         || z.m != 1
         || n == 0
@@ -2075,7 +2087,7 @@ fn ab_flat_batch<T: IoFloat>(
     // on AVX-512 CPUs (which have AVX2), except f64 rows longer than
     // SHORT_ROWS_AVX512_F64_MAX (docs/benchmarks.md, session 12).
     let f64_ = simd::is_f64::<T>();
-    let lanes_cpu = match kind {
+    let lanes_cpu = match cpu_kind {
         FlatKernel::Avx2 => true,
         FlatKernel::Avx512 => simd::avx2_available() && !(f64_ && n > SHORT_ROWS_AVX512_F64_MAX),
         FlatKernel::Avx512Generic => false,
@@ -2088,7 +2100,7 @@ fn ab_flat_batch<T: IoFloat>(
             || (nt && !f64_));
     let rows16 = match rows16_switch() {
         Some(on) => {
-            on && kind == FlatKernel::Avx512 && simd::avx2_available() && n < SIMD_MIN_SAMPLES
+            on && cpu_kind == FlatKernel::Avx512 && simd::avx2_available() && n < SIMD_MIN_SAMPLES
         }
         None => false,
     };
@@ -2127,7 +2139,7 @@ fn ab_flat_batch<T: IoFloat>(
             &params[j0..j0 + cn]
         };
         if rows16 {
-            // SAFETY: `kind` is Avx512 (AVX-512F and FMA checked by
+            // SAFETY: `cpu_kind` is Avx512 (AVX-512F and FMA checked by
             // `flat_kernel()`) and `avx2_available()`; T is f32 or f64.
             unsafe { rows16::ab_rows16(pr, init, n, zc, xs, vs, st, nt)? };
         } else if rows8 {
@@ -2171,6 +2183,24 @@ fn ab_flat_batch<T: IoFloat>(
     };
     Some(run_row_chunks(states, xs, vs, n, per, run))
 }
+
+/// Bytes of `z` and outputs from which rectangular `f64` batches on an
+/// AMD Zen 4 take the AVX2 flat kernel's routing ([`tracks_flat_kernel`]:
+/// rows shorter than `SIMD_MIN_SAMPLES` and aliased rows
+/// ([`aliased_rows`]) with streamed outputs in the AVX2 flat kernel, the
+/// other rows in the row lanes) rather than the AVX-512 one (rows shorter
+/// than 512 in the hand-written AVX-512 flat kernel, aliased rows in the
+/// row lanes). Measured on a Zen 4 EPYC guest (32 MiB L3), from Python,
+/// `f64`, ns per sample, three alternated processes, AVX-512 routing ->
+/// AVX2 (docs/benchmarks.md, session 34): 10^7 samples, rows of 100
+/// 1.19-1.23 -> 1.04-1.06, 200 1.03-1.06 -> 0.88-0.91, 400 0.98-1.00 ->
+/// 0.85, 256 1.36-1.37 -> 0.86-0.90, 512 1.45-1.47 -> 0.81-0.84, 1,024
+/// 1.27-1.34 -> 0.79-0.81, 4,096 1.16-1.21 -> 0.77, 1,000 and 10,000 the
+/// same kernel; 2-4 x 10^6 samples rows of 100-400 12-17 % faster, 1.4 x
+/// 10^6 5-8 %; but 10^6 (24 MB, within the L3) the same or slower and
+/// 6 x 10^5 rows of 100 and 200 1.18 / 1.04 -> 1.60-1.66 / 1.47-1.50.
+#[cfg(target_arch = "x86_64")]
+const ZEN4_ROWS_AVX2_MIN_BYTES: usize = 32 << 20;
 
 /// Tracks per chunk (the unit of parallel work) of a batch of `n_tracks`
 /// rows of `n` samples: all of them unless `parallel` with several threads
