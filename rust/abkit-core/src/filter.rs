@@ -2474,8 +2474,9 @@ unsafe fn ab_track_fma<T: IoFloat>(
 /// 1.01 -> 0.93, all 300 1.04 -> 0.94, all 100 1.27 -> 1.17; from Python
 /// (`bench/bench_tracks.py`) ragged 10..10,000 893 -> 1,005 Msamples/s,
 /// while `f32` lost 3-5 % and so keeps the AVX-512 kernel (rectangular
-/// short rows keep it too: the AVX2 kind was as fast or slower there;
-/// docs/benchmarks.md, session 30). `ABKIT_FLAT_AVX2=0` keeps the AVX-512
+/// short rows kept it too in session 30, where the AVX2 kind was as fast
+/// or slower; since session 34 rectangular `f64` batches beyond the L3
+/// take the AVX2 kind, [`ZEN4_ROWS_AVX2_MIN_BYTES`]; docs/benchmarks.md). `ABKIT_FLAT_AVX2=0` keeps the AVX-512
 /// kernel here as well (tests and comparisons); `ABKIT_FLAT_AVX2=1` gave
 /// the AVX2 kind already. The same bits either way.
 #[cfg(target_arch = "x86_64")]
