@@ -2196,9 +2196,10 @@ fn ab_flat_batch<T: IoFloat>(
 /// 1.19-1.23 -> 1.04-1.06, 200 1.03-1.06 -> 0.88-0.91, 400 0.98-1.00 ->
 /// 0.85, 256 1.36-1.37 -> 0.86-0.90, 512 1.45-1.47 -> 0.81-0.84, 1,024
 /// 1.27-1.34 -> 0.79-0.81, 4,096 1.16-1.21 -> 0.77, 1,000 and 10,000 the
-/// same kernel; 2-4 x 10^6 samples rows of 100-400 12-17 % faster, 1.4 x
-/// 10^6 5-8 %; but 10^6 (24 MB, within the L3) the same or slower and
-/// 6 x 10^5 rows of 100 and 200 1.18 / 1.04 -> 1.60-1.66 / 1.47-1.50.
+/// same kernel; 2-4 x 10^6 samples rows of 100-400 12-21 % faster, 1.4 x
+/// 10^6 5-13 %; but at 10^6 (24 MB, within the L3) rows of 100 and 200
+/// the same or slower, and at 6 x 10^5 rows of 100 and 200 1.18 / 1.04 ->
+/// 1.60-1.66 / 1.47-1.50.
 #[cfg(target_arch = "x86_64")]
 const ZEN4_ROWS_AVX2_MIN_BYTES: usize = 32 << 20;
 
@@ -2476,9 +2477,10 @@ unsafe fn ab_track_fma<T: IoFloat>(
 /// while `f32` lost 3-5 % and so keeps the AVX-512 kernel (rectangular
 /// short rows kept it too in session 30, where the AVX2 kind was as fast
 /// or slower; since session 34 rectangular `f64` batches beyond the L3
-/// take the AVX2 kind, [`ZEN4_ROWS_AVX2_MIN_BYTES`]; docs/benchmarks.md). `ABKIT_FLAT_AVX2=0` keeps the AVX-512
-/// kernel here as well (tests and comparisons); `ABKIT_FLAT_AVX2=1` gave
-/// the AVX2 kind already. The same bits either way.
+/// take the AVX2 kind, [`ZEN4_ROWS_AVX2_MIN_BYTES`]; docs/benchmarks.md).
+/// `ABKIT_FLAT_AVX2=0` keeps the AVX-512 kernel here as well (tests and
+/// comparisons); `ABKIT_FLAT_AVX2=1` gave the AVX2 kind already. The same
+/// bits either way.
 #[cfg(target_arch = "x86_64")]
 fn tracks_flat_kernel<T: 'static>(kind: FlatKernel) -> FlatKernel {
     static ZEN4: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
