@@ -148,35 +148,20 @@ def test_short_rows_large_output_streamed(dtype, ntr, n):
 
 @pytest.mark.parametrize(
     "dtype,ntr,n",
-    [(np.float64, 6_000, 256), (np.float64, 1_500, 1_024), (np.float64, 400, 4_096), (np.float32, 3_000, 512), (np.float64, 7_001, 200)],
-)
-def test_aliased_and_short_rows_beyond_the_l3_bit_identical(dtype, ntr, n):
-    # Batches of >= 32 MiB (z and outputs): rows a multiple of 2 KiB long
-    # with streamed outputs run in the AVX2 flat kernel (AVX2-only CPUs, and
-    # float64 on an AMD Zen 4, where short rows take it too); every row
-    # equals the scalar row kernel's (residuals on) bit for bit, for any
-    # thread count.
-    rng = np.random.default_rng(31)
-    z = _z(rng, (ntr, n), "random", dtype)
-    f = AlphaBetaFilter(0.42, 0.11, 1.0)
-    big = f.run(z, threads=1)
-    idx = np.r_[0:9, ntr // 2 : ntr // 2 + 17, ntr - 10 : ntr]
-    scalar = f.run(z[idx], return_residuals=True)
-    assert np.array_equal(big.states[:, idx], scalar.states, equal_nan=True)
-    assert np.array_equal(big.state._packed[idx], scalar.state._packed, equal_nan=True)
-    assert np.array_equal(f.run(z, threads=2).states, big.states, equal_nan=True)
-
-
-@pytest.mark.parametrize(
-    "dtype,ntr,n",
-    [(np.float64, 30_000, 20), (np.float64, 30_000, 70), (np.float64, 230_000, 20), (np.float32, 30_000, 60), (np.float32, 70_000, 9)],
+    [
+        (np.float64, 30_000, 20), (np.float64, 30_000, 70), (np.float64, 230_000, 20), (np.float32, 30_000, 60), (np.float32, 70_000, 9),
+        (np.float64, 6_000, 256), (np.float64, 1_500, 1_024), (np.float64, 400, 4_096), (np.float32, 3_000, 512), (np.float64, 7_001, 200),
+    ],
 )
 def test_short_rows_in_memory_bit_identical(dtype, ntr, n):
-    # Batches bigger than the caches with rows of <= 80 samples (float32:
-    # <= 64) run in the AVX2 short-row lanes on AVX2-only CPUs (230,000 x
-    # 20 float64: outputs >= 64 MiB, streamed through the stages); every
-    # track equals the scalar row kernel's (residuals on: no flat or
-    # short-row kernel) bit for bit.
+    # Batches bigger than the caches. Rows of <= 80 samples (float32: <= 64)
+    # run in the AVX2 short-row lanes on AVX2-only CPUs (230,000 x 20
+    # float64: outputs >= 64 MiB, streamed through the stages). From 32 MiB
+    # (z and outputs) rows a multiple of 2 KiB long with streamed outputs
+    # run in the AVX2 flat kernel (AVX2-only CPUs, and float64 on an AMD
+    # Zen 4, where rows shorter than 256 take it too). Every track equals
+    # the scalar row kernel's (residuals on: no flat or short-row kernel)
+    # bit for bit, for one thread and for two.
     rng = np.random.default_rng(29)
     z = _z(rng, (ntr, n), "random", dtype)
     f = AlphaBetaFilter(0.45, 0.12, 1.0)
@@ -185,7 +170,7 @@ def test_short_rows_in_memory_bit_identical(dtype, ntr, n):
     scalar = f.run(z[idx], return_residuals=True)
     assert np.array_equal(big.states[:, idx], scalar.states, equal_nan=True)
     assert np.array_equal(big.state._packed[idx], scalar.state._packed, equal_nan=True)
-    assert np.array_equal(f.run(z).states, big.states, equal_nan=True)
+    assert np.array_equal(f.run(z, threads=2).states, big.states, equal_nan=True)
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
