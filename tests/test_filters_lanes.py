@@ -382,9 +382,18 @@ def test_general_lanes8_equal_scalar_bitwise(tmp_path):
                     keys.append(key)
     spec["keys"] = np.array(keys)
     np.savez(tmp_path / "spec.npz", **spec)
-    for tag, env in (("on", {"ABKIT_GEN_AVX512": "1"}), ("off", {"ABKIT_DISABLE_SIMD": "1"})):
+    # "four": the 4-lane AVX2 kernel without its Zen 4 form (AVX-512VL) on
+    # every shape; in this process (no override) float64 on a Zen 4 runs the
+    # 4-lane kernel's Zen 4 form.
+    runs = (
+        ("on", {"ABKIT_GEN_AVX512": "1"}),
+        ("four", {"ABKIT_GEN_AVX512": "0", "ABKIT_ZEN4": "0"}),
+        ("off", {"ABKIT_DISABLE_SIMD": "1"}),
+    )
+    for tag, env in runs:
         _run_child(_GEN8_CHILD, [str(tmp_path), tag], env)
     on = np.load(tmp_path / "out_on.npz")
+    four = np.load(tmp_path / "out_four.npz")
     off = np.load(tmp_path / "out_off.npz")
     loaded = np.load(tmp_path / "spec.npz")
     for key in keys:
@@ -395,6 +404,9 @@ def test_general_lanes8_equal_scalar_bitwise(tmp_path):
         assert s.shape == (N,) + z.shape[:2] and s.dtype == z.dtype, key
         assert np.array_equal(s, off["s_" + key], equal_nan=True), key
         assert np.array_equal(on["x_" + key], off["x_" + key], equal_nan=True), key
+        assert np.array_equal(four["s_" + key], s, equal_nan=True), key
+        assert np.array_equal(four["x_" + key], on["x_" + key], equal_nan=True), key
+        assert np.array_equal(four["c_" + key], s, equal_nan=True), key
         # streaming in chunks: the same bits as one run, with and without SIMD
         assert np.array_equal(on["c_" + key], s, equal_nan=True), key
         assert np.array_equal(off["c_" + key], s, equal_nan=True), key
@@ -431,7 +443,7 @@ def test_general_lanes_large_output_streamed_f32(tmp_path):
 @pytest.mark.parametrize(
     "shape, dtype",
     [
-        ((16, 600), np.float64),  # f64 rows >= 512 samples: 8-lane kernel by default on AVX-512
+        ((16, 600), np.float64),  # f64 rows >= 512 samples: 8-lane kernel by default on AVX-512 (4 on a Zen 4)
         ((3000, 120), np.float64),  # 3 x 3000 x 120 f64 = 8.6 MB >= 8 MiB: streamed, >= 100 samples
         ((3000, 90), np.float64),  # streamed but shorter than 100: 4-lane kernel
         ((16, 250), np.float32),  # f32 rows >= 200 samples: 8-lane kernel (f32 transposes)
@@ -453,16 +465,29 @@ def test_general_default_route_equals_scalar_bitwise(shape, dtype):
 
 
 @pytest.mark.parametrize("ntr,n", [(64, 8192), (40, 10_001), (200, 2048)])
-def test_general_lanes_streamed_f64_lane_phases(ntr, n):
+def test_general_lanes_streamed_f64_lane_phases(ntr, n, tmp_path):
     # float64 3-state outputs of 12-14 MB (streamed): rows of 8,192 or 2,048
-    # samples put every lane's lines on one parity, so lanes take one more
-    # masked head block (lane phases); rows of 10,001 mostly so. Every track
-    # equals the scalar per-track loop (residuals requested) bit for bit,
-    # final states too.
+    # samples put every lane's lines on one parity, so the 8 AVX-512 lanes
+    # take one more masked head block (lane phases); rows of 10,001 mostly
+    # so. Every track equals the scalar per-track loop (residuals requested)
+    # bit for bit, final states too: the default route in this process (on
+    # a Zen 4 the 4-lane kernel's Zen 4 form) and the 8 lanes in a child
+    # (ABKIT_GEN_AVX512=1).
     rng = np.random.default_rng(ntr + n)
     z = fr.with_nans(rng, fr.kinematic_z(rng, ntr, n, 0.5), "random")
+    np.save(tmp_path / "z.npy", z)
+    code = (
+        "import sys, numpy as np, abkit\n"
+        "z = np.load(sys.argv[1] + '/z.npy')\n"
+        "r = abkit.AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5).run(z, threads=1)\n"
+        "np.save(sys.argv[1] + '/s.npy', r.states)\n"
+        "np.save(sys.argv[1] + '/x.npy', r.state.x)\n"
+    )
+    _run_child(code, [str(tmp_path)], {"ABKIT_GEN_AVX512": "1"})
     f = AlphaBetaGammaFilter(0.5, 0.3, 0.05, 0.5)
     lanes = f.run(z, threads=1)
     scalar = f.run(z, return_residuals=True)
     assert np.array_equal(lanes.states, scalar.states, equal_nan=True)
     assert np.array_equal(lanes.state.x, scalar.state.x, equal_nan=True)
+    assert np.array_equal(np.load(tmp_path / "s.npy"), scalar.states, equal_nan=True)
+    assert np.array_equal(np.load(tmp_path / "x.npy"), scalar.state.x, equal_nan=True)

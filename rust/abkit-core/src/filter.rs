@@ -1619,6 +1619,12 @@ fn gen_lanes_entry<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     #[cfg(target_arch = "x86_64")]
     {
         if FMA && n >= k0 + 64 && simd::avx2_available() && simd::gen_fits::<T>(M) {
+            // On a Zen 4, `f64` in the Zen 4 form (`simd::gen_lanes4_zen4`).
+            if simd::is_f64::<T>() && zen4_forms() {
+                // SAFETY: `zen4_forms` checked AVX2, FMA, AVX-512F and -VL.
+                unsafe { simd::gen_lanes4_zen4::<T, N, M>(cs, xs, k0, n, rows, group, ahead, nt) };
+                return;
+            }
             // SAFETY: `avx2_available()` checked AVX2 and FMA on this CPU.
             unsafe { simd::gen_lanes4::<T, N, M>(cs, xs, k0, n, rows, group, ahead, nt) };
             return;
@@ -2504,8 +2510,10 @@ fn tracks_flat_kernel<T: 'static>(kind: FlatKernel) -> FlatKernel {
 /// `flatv::ab_flat_avx2`), the AVX2 row lanes, which then also take `f64`
 /// rows from the AVX-512 ones ([`rows_zen4`]), and the irregular-timestamp lanes
 /// ([`crate::ragged_simd::zen4`], which also store and prefetch
-/// differently there). Measured on a Zen 4 EPYC guest, docs/benchmarks.md,
-/// session 31.
+/// differently there), and the 4-lane general kernel of `f64`, which then
+/// also takes `f64` rows from the 8 AVX-512 general lanes
+/// (`simd::gen_lanes4_zen4`, `simd::gen8_enabled`). Measured on a Zen 4 EPYC
+/// guest, docs/benchmarks.md, sessions 31 and 35.
 #[cfg(target_arch = "x86_64")]
 pub(crate) fn zen4_forms() -> bool {
     static Z: std::sync::OnceLock<bool> = std::sync::OnceLock::new();

@@ -972,6 +972,49 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
     ahead: Option<(usize, usize)>,
     nt: bool,
 ) {
+    // SAFETY: forwarded.
+    unsafe { gen_lanes4_body::<T, N, M>(cs, xs, k0, n, rows, group, ahead, nt) }
+}
+
+/// [`gen_lanes4`] compiled with AVX-512VL too (32 vector registers; the
+/// same operations, so the same bits): the `f64` general lanes on an AMD
+/// Zen 4 (`filter::zen4_forms`). There (`genbench`, 3-state `f64`, ns per
+/// sample, plain -> Zen 4 form) 19,531 x 512 2.00 -> 1.70, 4,882 x 2,048
+/// 1.76 -> 1.38, 10,000 x 1,000 1.27 -> 1.12, 1,000 x 10,000 1.15 -> 1.07,
+/// rows of 64-200 about equal; `f32` rows of 64-100 (which stay in the 4
+/// lanes) were 6-12 % slower in it, so `f32` keeps the plain kernel
+/// (docs/benchmarks.md, session 35).
+///
+/// # Safety
+/// The CPU supports AVX2, FMA, AVX-512F and AVX-512VL.
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+pub(super) unsafe fn gen_lanes4_zen4<T: IoFloat, const N: usize, const M: usize>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    k0: usize,
+    n: usize,
+    rows: [&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
+    // SAFETY: forwarded.
+    unsafe { gen_lanes4_body::<T, N, M>(cs, xs, k0, n, rows, group, ahead, nt) }
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+unsafe fn gen_lanes4_body<T: IoFloat, const N: usize, const M: usize>(
+    cs: [&GenConst<N, M>; GEN_LANES],
+    xs: &mut [[f64; N]; GEN_LANES],
+    k0: usize,
+    n: usize,
+    rows: [&[T]; GEN_LANES],
+    group: &mut [Job<'_, T, N>],
+    ahead: Option<(usize, usize)>,
+    nt: bool,
+) {
     const L: usize = GEN_LANES;
     // Samples per block: one 64-byte line of output per lane and component
     // (8 f64 or 16 f32); `BMAX` sizes the buffers.
@@ -1223,9 +1266,18 @@ pub(super) const GEN8_MIN_SAMPLES_STREAMED: usize = 100;
 /// Whether the AVX-512 general lanes ([`gen_lanes8`]) run for rows of `n`
 /// samples of `T` (outputs streamed if `nt`): where [`available`], for `f64`
 /// rows of at least [`GEN8_MIN_SAMPLES`] ([`GEN8_MIN_SAMPLES_STREAMED`] if
-/// `nt`) and `f32` rows of at least [`GEN8_MIN_SAMPLES_F32`]. The
-/// environment variable `ABKIT_GEN_AVX512` (read once) overrides: `0` never,
-/// anything else always (short rows too).
+/// `nt`) and `f32` rows of at least [`GEN8_MIN_SAMPLES_F32`]; on an AMD
+/// Zen 4 ([`super::zen4_forms`]) `f64` never by default: there the 4-lane
+/// kernel's Zen 4 form ([`gen_lanes4_zen4`]) was faster on every `f64`
+/// shape measured (`genbench`, 3-state, from memory, one thread, minimum
+/// of 3 alternated runs, ns per sample, 8 lanes -> 4 lanes' Zen 4 form):
+/// 100,000 x 100 2.66 -> 1.76, 50,000 x 200 2.02 -> 1.38, 19,531 x 512
+/// 2.95 -> 1.70, 10,000 x 1,000 1.65 -> 1.12, 4,882 x 2,048 2.46 -> 1.38,
+/// 1,000 x 10,000 1.61 -> 1.07, one track of 10^7 (split) 1.67 -> 1.08;
+/// `f32` was as fast or faster in the 8 lanes, so it keeps them
+/// (docs/benchmarks.md, session 35). The environment variable
+/// `ABKIT_GEN_AVX512` (read once) overrides: `0` never, anything else
+/// always (short rows too).
 /// Results are the same bits either way (tests/test_filters_lanes.py,
 /// `test_general_lanes8_equal_scalar_bitwise`).
 pub(super) fn gen8_enabled<T: 'static>(n: usize, nt: bool) -> bool {
@@ -1239,7 +1291,8 @@ pub(super) fn gen8_enabled<T: 'static>(n: usize, nt: bool) -> bool {
     } else {
         GEN8_MIN_SAMPLES
     };
-    available() && mode.unwrap_or((is_f64::<T>() || is_f32::<T>()) && n >= min)
+    let zen4_f64 = is_f64::<T>() && super::zen4_forms();
+    available() && mode.unwrap_or((is_f64::<T>() || is_f32::<T>()) && n >= min && !zen4_f64)
 }
 
 /// The general gains of eight lanes in vectors (slot `l`: lane `l`'s).
