@@ -2,7 +2,8 @@
 //! group in the eight `f64` slots of one register. The general kernel:
 //! eight tracks per register with AVX-512 ([`gen_lanes8`], groups of
 //! [`GEN_LANES8`]), else the four tracks of a [`GEN_LANES`] group in an AVX2
-//! register ([`gen_lanes4`]).
+//! register ([`gen_lanes4`]; on an AMD Zen 4 `f64` always takes the four
+//! lanes, compiled with AVX-512VL: [`gen_lanes4_zen4`], [`gen8_enabled`]).
 //!
 //! Each lane reads eight consecutive samples of its own track (one vector
 //! load), an 8 x 8 transpose turns the eight rows into eight vectors of "the
