@@ -20,6 +20,10 @@
  *              as a kernel interleaving 8 tracks has).
  * copy2nt_* / copy3nt_* : the same with non-temporal (streaming) stores,
  *              which skip the read-for-ownership of the output lines.
+ * copy2ntx_* : as copy2nt_*, but each output streamed from its own first
+ *              64-byte boundary (z read at the matching offsets), so it
+ *              streams whole lines whatever the outputs' mutual alignment
+ *              (bench_layout.py).
  */
 #include <math.h>
 #include <stddef.h>
@@ -246,6 +250,27 @@ int nt_available(void) { return NT_AVAILABLE; }
     }
 DEFINE_COPYNT(copy2nt_f64, copy3nt_f64, double, NT_D, LD_D)
 DEFINE_COPYNT(copy2nt_f32, copy3nt_f32, float, NT_S, LD_S)
+#define DEFINE_COPYNTX(NAME2, TYPE, NT, LD)                                    \
+    int NAME2(const TYPE *restrict z, TYPE *restrict a, TYPE *restrict b,      \
+              ptrdiff_t n) {                                                   \
+        enum { W = NT_BYTES / sizeof(TYPE) };                                  \
+        ptrdiff_t ka = 0, kb = 0;                                              \
+        while (ka < n && !ALIGNED(a + ka)) { a[ka] = z[ka]; ka++; }            \
+        while (kb < n && !ALIGNED(b + kb)) { b[kb] = z[kb]; kb++; }            \
+        /* one pass: both outputs' lines at nearly the same z offset */        \
+        ptrdiff_t d = kb - ka;                                                 \
+        ptrdiff_t k = ka;                                                      \
+        for (; k + W <= n && k + d + W <= n; k += W) {                         \
+            NT(a + k, LD(z + k));                                              \
+            NT(b + k + d, LD(z + k + d));                                      \
+        }                                                                      \
+        for (ptrdiff_t j = k; j < n; j++) a[j] = z[j];                         \
+        for (ptrdiff_t j = k + d; j < n; j++) b[j] = z[j];                     \
+        _mm_sfence();                                                          \
+        return 1;                                                              \
+    }
+DEFINE_COPYNTX(copy2ntx_f64, double, NT_D, LD_D)
+DEFINE_COPYNTX(copy2ntx_f32, float, NT_S, LD_S)
 #else
 #define DEFINE_COPYNT(NAME2, NAME3, TYPE)                                      \
     int NAME2(const TYPE *restrict z, TYPE *restrict a, TYPE *restrict b,      \
@@ -260,6 +285,12 @@ DEFINE_COPYNT(copy2nt_f32, copy3nt_f32, float, NT_S, LD_S)
     }
 DEFINE_COPYNT(copy2nt_f64, copy3nt_f64, double)
 DEFINE_COPYNT(copy2nt_f32, copy3nt_f32, float)
+int copy2ntx_f64(const double *restrict z, double *restrict a, double *restrict b, ptrdiff_t n) {
+    return copy2nt_f64(z, a, b, n);
+}
+int copy2ntx_f32(const float *restrict z, float *restrict a, float *restrict b, ptrdiff_t n) {
+    return copy2nt_f32(z, a, b, n);
+}
 #endif
 
 /* Allocation alone: make every page of a fresh buffer exist by writing one
