@@ -295,7 +295,8 @@ def test_general_lanes_short_rows_streamed(n):
 # 8 where the CPU has AVX-512, else groups of 4 / scalar): the same bits as
 # the scalar per-track loop in process, and as a process with
 # ABKIT_DISABLE_SIMD=1 (scalar lanes, groups of 4). By default the 8-lane
-# kernel runs only float64 rows of >= 512 samples; ABKIT_GEN_AVX512=1 (read
+# kernel runs only float64 rows of >= 512 samples (>= 100 streamed; none on
+# an AMD Zen 4) and float32 rows of >= 200; ABKIT_GEN_AVX512=1 (read
 # once per process) runs it for every shape and dtype, so the child
 # processes set it; on a CPU without AVX-512 they run the 4-lane AVX2
 # path / scalar lanes, and the comparisons still hold.

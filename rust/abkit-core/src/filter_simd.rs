@@ -983,7 +983,7 @@ pub(super) unsafe fn gen_lanes4<T: IoFloat, const N: usize, const M: usize>(
 /// sample, plain -> Zen 4 form) 19,531 x 512 2.00 -> 1.70, 4,882 x 2,048
 /// 1.76 -> 1.38, 10,000 x 1,000 1.27 -> 1.12, 1,000 x 10,000 1.15 -> 1.07,
 /// rows of 64-200 about equal; `f32` rows of 64-100 (which stay in the 4
-/// lanes) were 6-12 % slower in it, so `f32` keeps the plain kernel
+/// lanes) were 7-12 % slower in it, so `f32` keeps the plain kernel
 /// (docs/benchmarks.md, session 35).
 ///
 /// # Safety
