@@ -1619,9 +1619,9 @@ fn gen_lanes_entry<T: IoFloat, const N: usize, const M: usize, const FMA: bool>(
     #[cfg(target_arch = "x86_64")]
     {
         if FMA && n >= k0 + 64 && simd::avx2_available() && simd::gen_fits::<T>(M) {
-            // On a Zen 4, `f64` in the Zen 4 form (`simd::gen_lanes4_zen4`).
-            if simd::is_f64::<T>() && zen4_forms() {
-                // SAFETY: `zen4_forms` checked AVX2, FMA, AVX-512F and -VL.
+            if simd::gen_zen4::<T>() {
+                // SAFETY: `gen_zen4` (`zen4_forms`) checked AVX2, FMA,
+                // AVX-512F and -VL.
                 unsafe { simd::gen_lanes4_zen4::<T, N, M>(cs, xs, k0, n, rows, group, ahead, nt) };
                 return;
             }

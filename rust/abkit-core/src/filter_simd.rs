@@ -1292,8 +1292,15 @@ pub(super) fn gen8_enabled<T: 'static>(n: usize, nt: bool) -> bool {
     } else {
         GEN8_MIN_SAMPLES
     };
-    let zen4_f64 = is_f64::<T>() && super::zen4_forms();
-    available() && mode.unwrap_or((is_f64::<T>() || is_f32::<T>()) && n >= min && !zen4_f64)
+    available() && mode.unwrap_or((is_f64::<T>() || is_f32::<T>()) && n >= min && !gen_zen4::<T>())
+}
+
+/// Whether the general lanes of `T` take their AMD Zen 4 routing: `f64`
+/// on a CPU with the Zen 4 forms ([`super::zen4_forms`]) runs the 4-lane
+/// kernel's Zen 4 form ([`gen_lanes4_zen4`]) and never the 8 lanes by
+/// default ([`gen8_enabled`]).
+pub(super) fn gen_zen4<T: 'static>() -> bool {
+    is_f64::<T>() && super::zen4_forms()
 }
 
 /// The general gains of eight lanes in vectors (slot `l`: lane `l`'s).
