@@ -10,14 +10,20 @@ velocity plane lies 0-7 (``float64``) elements off the position plane's
 lines, and for each, in the same round-robin run (one thread, ``out=``
 reused, minimum of ``--repeat`` rounds):
 
-* abkit ``AlphaBetaFilter.run`` and ``AlphaBetaGammaFilter.run`` (3 outputs);
+* abkit ``AlphaBetaFilter.run`` and ``AlphaBetaGammaFilter.run`` (3 outputs)
+  into a C-contiguous ``out=`` (``np.empty``) and into ``out=`` in the
+  padded plane layout of the fresh results (``abkit.empty_states``: every
+  plane on the position plane's line phase), and the general 3-state
+  kernel (``FixedGainFilter``, the alpha-beta-gamma filter's matrices) in
+  both layouts;
 * ``copy2nt``: ``bench/run.py``'s non-temporal copy pass (z to two outputs),
   which streams only when both outputs are mutually line-aligned (else
   ordinary stores, as abkit's row lanes);
 * ``copy2ntx``: the same bytes, each output streamed from its own first line
   boundary: the ceiling for any layout.
 
-Prints a markdown table: ns per sample and abkit's fraction of ``copy2ntx``.
+Prints a markdown table: ns per sample and abkit's fraction of ``copy2ntx``
+(C-contiguous and padded ``out=``).
 
     python bench/bench_layout.py [--repeat 7] [--only f64|f32]
 """
@@ -61,9 +67,14 @@ def main() -> None:
         getattr(lib, name).restype = ctypes.c_int
     ab = abkit.AlphaBetaFilter(0.5, 0.2, 0.1)
     abg = abkit.AlphaBetaGammaFilter(0.5, 0.4, 0.1, 0.1)
+    g3 = abkit.FixedGainFilter(abg.Phi, abg.H, abg.K)
     dts = [np.float64, np.float32] if not args.only else [np.float64 if args.only == "f64" else np.float32]
-    print("| dtype | tracks x samples | v plane off x's lines (elements) | abkit alpha-beta | copy2nt | copy2ntx | abkit / copy2ntx | abkit alpha-beta-gamma |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    print(
+        "| dtype | tracks x samples | v plane off x's lines (elements) | copy2nt | copy2ntx "
+        "| alpha-beta, C out | padded out | abkit / copy2ntx, C / padded "
+        "| alpha-beta-gamma, C out | padded out | general 3-state, C out | padded out |"
+    )
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for dt in dts:
         s = "f64" if dt == np.float64 else "f32"
         for nt, ns in SHAPES:
@@ -71,6 +82,8 @@ def main() -> None:
             z = make_z(nt, ns, dt)
             out = np.empty((2, nt, ns), dtype=dt)
             o3 = np.empty((3, nt, ns), dtype=dt)
+            out_p = abkit.empty_states((2, nt, ns), dt)
+            o3_p = abkit.empty_states((3, nt, ns), dt)
             cp = np.empty((2, nt, ns), dtype=dt)
             zp, c0, c1 = ptr(z), ptr(cp[0]), ptr(cp[1])
             per_line = 64 // z.itemsize
@@ -85,11 +98,17 @@ def main() -> None:
             ref = ab.run(z, return_residuals=True).states
             if not np.array_equal(ab.run(z, out=out, threads=1).states, ref, equal_nan=True):
                 raise AssertionError("abkit differs from its scalar path")
+            if not np.array_equal(ab.run(z, out=out_p, threads=1).states, ref, equal_nan=True):
+                raise AssertionError("abkit's padded layout differs")
             cases = [
                 ("ab", lambda: ab.run(z, out=out, threads=1)),
                 ("nt", lambda: copy2nt(zp, c0, c1, n)),
                 ("ntx", lambda: copy2ntx(zp, c0, c1, n)),
+                ("ab_p", lambda: ab.run(z, out=out_p, threads=1)),
                 ("abg", lambda: abg.run(z, out=o3, threads=1)),
+                ("abg_p", lambda: abg.run(z, out=o3_p, threads=1)),
+                ("g3", lambda: g3.run(z, out=o3, threads=1)),
+                ("g3_p", lambda: g3.run(z, out=o3_p, threads=1)),
             ]
             best = {k: float("inf") for k, _ in cases}
             for k, f in cases:
@@ -101,11 +120,12 @@ def main() -> None:
                     best[k] = min(best[k], time.perf_counter() - t0)
             ns_ = {k: v / n * 1e9 for k, v in best.items()}
             print(
-                f"| {s} | {nt:,} x {ns:,} | {off} | {ns_['ab']:.3f} | {ns_['nt']:.3f} | {ns_['ntx']:.3f} | "
-                f"{ns_['ntx'] / ns_['ab']:.2f} | {ns_['abg']:.3f} |",
+                f"| {s} | {nt:,} x {ns:,} | {off} | {ns_['nt']:.3f} | {ns_['ntx']:.3f} "
+                f"| {ns_['ab']:.3f} | {ns_['ab_p']:.3f} | {ns_['ntx'] / ns_['ab']:.2f} / {ns_['ntx'] / ns_['ab_p']:.2f} "
+                f"| {ns_['abg']:.3f} | {ns_['abg_p']:.3f} | {ns_['g3']:.3f} | {ns_['g3_p']:.3f} |",
                 flush=True,
             )
-            del z, out, o3, cp
+            del z, out, o3, cp, out_p, o3_p
 
 
 if __name__ == "__main__":

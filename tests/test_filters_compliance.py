@@ -412,7 +412,8 @@ def test_result_layout():
     z = fr.kinematic_z(rng, 3, 50, 1.0)
     r = AlphaBetaFilter(0.5, 0.2, 1.0).run(z)
     assert r.residuals is None
-    assert r.states.shape == (2, 3, 50) and r.states.flags.c_contiguous
+    # Component-major, each plane contiguous (the planes' padding: test_output_layout.py).
+    assert r.states.shape == (2, 3, 50) and r.states[0].flags.c_contiguous and r.states[1].flags.c_contiguous
     assert r.position.shape == z.shape and r.velocity.shape == z.shape
     assert r.position.flags.c_contiguous and r.velocity.flags.c_contiguous
     assert np.shares_memory(r.position, r.states)

@@ -47,6 +47,7 @@ from .filters import (
     FilterState,
     FixedGainFilter,
     Tracker,
+    empty_states,
 )
 from .kalman import KalmanFilter
 
@@ -71,4 +72,5 @@ __all__ = [
     "KalmanFilter",
     "Tracker",
     "__version__",
+    "empty_states",
 ]

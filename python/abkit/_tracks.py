@@ -215,7 +215,7 @@ def run_tracks(
     lag: Optional[int] = None,
 ) -> "FilterResult":
     """One spatial axis (or none) through the track kernel."""
-    from .filters import FilterResult, FilterState
+    from .filters import FilterResult, FilterState, planes_view
 
     if threads is not None and (not isinstance(threads, (int, np.integer)) or isinstance(threads, bool) or threads < 1):
         raise ValueError(f"threads must be a positive integer or None, got {threads!r}")
@@ -259,7 +259,7 @@ def run_tracks(
     zarr = z
     shape = sample_shape
     o = f._out(out, zarr, z3, shape, threads)
-    out2 = o.reshape(f.n, n_total)
+    out2 = planes_view(o, (f.n, n_total))
     res2 = np.empty((n_total, m), dtype=z3.dtype) if return_residuals else None
     counts = np.zeros((n_tracks, 2), dtype=np.int64)
     from .filters import AlphaBetaFilter

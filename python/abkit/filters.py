@@ -57,6 +57,7 @@ __all__ = [
     "FilterState",
     "Tracker",
     "ABG_CONVENTIONS",
+    "empty_states",
 ]
 
 _W = int(_abkit.STATE_WIDTH)
@@ -216,8 +217,111 @@ class FilterResult:
 _PREFAULT_BYTES = 64 << 20
 
 
+def _line_elems(dtype: np.dtype) -> int:
+    """Elements of ``dtype`` per 64-byte cache line."""
+    return max(1, 64 // dtype.itemsize)
+
+
+def _padded(per: int, dtype: np.dtype) -> int:
+    """``per`` rounded up to whole 64-byte lines (the padded plane stride)."""
+    line = _line_elems(dtype)
+    return -(-per // line) * line
+
+
+def _empty_planes(shape: Tuple[int, ...], dtype: Any) -> Tuple[np.ndarray, np.ndarray]:
+    """An uninitialised ``shape`` array in the padded plane layout, and the
+    buffer it views (see :func:`empty_states`)."""
+    dt = np.dtype(dtype)
+    shape = tuple(int(d) for d in shape)
+    n, per = shape[0], int(np.prod(shape[1:], dtype=np.int64))
+    pad = _padded(per, dt)
+    if n < 2 or pad == per:
+        o = np.empty(shape, dtype=dt)
+        return o, o
+    line = _line_elems(dt)
+    buf = np.empty((n - 1) * pad + per + line, dtype=dt)
+    # Start the first plane on a 64-byte boundary (the others follow it).
+    skip = (-buf.ctypes.data // dt.itemsize) % line
+    inner = tuple(int(np.prod(shape[k + 1 :], dtype=np.int64)) * dt.itemsize for k in range(1, len(shape)))
+    o = np.ndarray(shape, dtype=dt, buffer=buf, offset=skip * dt.itemsize, strides=(pad * dt.itemsize,) + inner)
+    return o, buf
+
+
+def empty_states(shape: Tuple[int, ...], dtype: Any = np.float64) -> np.ndarray:
+    """A new, uninitialised estimate array for ``out=``, in the layout of
+    abkit's own results.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(n_states,) + z.shape[:k]``: the shape of a result's ``.states``
+        (for example ``(2, n_tracks, n_samples)`` for alpha-beta).
+    dtype : float32 or float64
+        The measurements' dtype.
+
+    Returns
+    -------
+    numpy.ndarray
+        An array of ``shape`` whose component planes ``a[i]`` are each
+        C-contiguous and each start at the same phase of a 64-byte cache
+        line as ``a[0]`` (the plane stride is the plane's size rounded up to
+        whole lines; a C-contiguous array when that is the size itself).
+
+    Notes
+    -----
+    The kernels stream the position plane from a cache-line boundary; the
+    other planes are streamed too only when they share its line phase, which
+    a C-contiguous ``(n_states, n_tracks, n_samples)`` array gives only when
+    ``n_tracks * n_samples`` is a multiple of 8 (float64) or 16 (float32).
+    Off it, filtering runs 25-120 % slower (``docs/benchmarks.md``). Every
+    fresh result uses this layout; ``out=`` accepts it (so a result's
+    ``.states`` can be passed back) as well as any C-contiguous array.
+
+    Examples
+    --------
+    >>> import numpy as np, abkit
+    >>> f = abkit.AlphaBetaFilter(0.5, 0.2, 1.0)
+    >>> z = np.arange(15.0).reshape(3, 5)
+    >>> out = abkit.empty_states((2,) + z.shape)
+    >>> out.strides  # planes of 15 elements, 16 apart
+    (128, 40, 8)
+    >>> r = f.run(z, out=out)
+    >>> r.states is out
+    True
+    >>> float(r.position[2, 4])
+    14.0
+    """
+    dt = np.dtype(dtype)
+    if dt not in _ACCEPTED:
+        raise TypeError(f"dtype must be float32 or float64, got {dt}")
+    if not isinstance(shape, tuple) or len(shape) < 2 or any(isinstance(d, bool) or not isinstance(d, (int, np.integer)) or d < 0 for d in shape):
+        raise ValueError(f"shape must be a tuple (n_states, ...) of at least two non-negative integers, got {shape!r}")
+    return _empty_planes(shape, dt)[0]
+
+
+def planes_layout_ok(out: np.ndarray) -> bool:
+    """Whether ``out`` has a layout the kernels write: C-contiguous, or the
+    padded plane layout of :func:`empty_states`."""
+    if out.flags.c_contiguous:
+        return True
+    if out.ndim < 2 or out.shape[0] < 2 or 0 in out.shape or not out[0].flags.c_contiguous:
+        return False
+    per = int(np.prod(out.shape[1:], dtype=np.int64))
+    return out.strides[0] == _padded(per, out.dtype) * out.itemsize
+
+
+def planes_view(o: np.ndarray, shape: Tuple[int, ...]) -> np.ndarray:
+    """``o`` (an estimate array of :func:`planes_layout_ok`) reshaped to
+    ``shape`` as a view, never a copy (the kernels write into it)."""
+    v = o.reshape(shape)
+    if v.size and not np.may_share_memory(v, o):
+        raise RuntimeError("internal error in abkit: the output would be copied")  # pragma: no cover
+    return v
+
+
 def fresh_output(shape: Tuple[int, ...], dtype: Any, threads: Optional[int] = None) -> np.ndarray:
-    """A new output array for the kernels. Big outputs are written by the
+    """A new output array for the kernels, in the padded plane layout of
+    :func:`empty_states`. Big outputs are written by the
     kernels with non-temporal stores, which are slow on pages that are not
     mapped yet (every first touch of a page is a fault in the middle of a
     streamed line): those pages are faulted in first, by touching one byte
@@ -225,9 +329,9 @@ def fresh_output(shape: Tuple[int, ...], dtype: Any, threads: Optional[int] = No
     on rayon's pool with the call's ``threads`` (the kernel zeroing the new
     pages is the cost, and it runs on every core), so filtering without
     ``out=`` costs filtering with ``out=`` plus the allocation."""
-    o = np.empty(shape, dtype=dtype)
-    if o.nbytes >= _PREFAULT_BYTES:
-        _abkit.prefault(o.reshape(-1).view(np.uint8), threads)
+    o, buf = _empty_planes(shape, dtype)
+    if buf.nbytes >= _PREFAULT_BYTES:
+        _abkit.prefault(buf.reshape(-1).view(np.uint8), threads)
     return o
 
 
@@ -478,8 +582,8 @@ class FixedGainFilter:
             raise TypeError(f"out must be a numpy array, got {type(out).__name__}")
         if out.shape != want or out.dtype != z.dtype:
             raise ValueError(f"out must have shape {want} and dtype {z.dtype}, got {out.shape} {out.dtype}")
-        if not out.flags.c_contiguous or not out.flags.writeable:
-            raise ValueError("out must be C-contiguous and writeable")
+        if not planes_layout_ok(out) or not out.flags.writeable:
+            raise ValueError("out must be writeable and C-contiguous or in the layout of abkit.empty_states (a result's .states)")
         if np.shares_memory(out, z):
             raise ValueError("out overlaps z")
         return out
@@ -659,7 +763,7 @@ class FixedGainFilter:
         zarr = z if isinstance(z, np.ndarray) else z3
         shape = (n_samples,) if single else (n_tracks, n_samples)
         o = self._out(out, zarr, z3, shape, threads)
-        out3 = o.reshape((self.n, n_tracks, n_samples))
+        out3 = planes_view(o, (self.n, n_tracks, n_samples))
         res3 = None
         if return_residuals:
             res3 = np.empty((n_tracks, n_samples, self.m), dtype=z3.dtype)

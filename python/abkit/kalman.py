@@ -43,7 +43,7 @@ import numpy as np
 
 from . import _abkit
 from ._validate import aligned_state, as_float_array, as_matrix, check_tracks_finite
-from .filters import fresh_output, prepare_z
+from .filters import fresh_output, planes_layout_ok, planes_view, prepare_z
 
 __all__ = ["KalmanFilter", "KalmanResult", "GainSequence", "gain_sequence"]
 
@@ -200,14 +200,14 @@ class KalmanFilter:
         else:
             if not isinstance(out, np.ndarray) or out.shape != want or out.dtype != z3.dtype:
                 raise ValueError(f"out must be an array of shape {want} and dtype {z3.dtype}")
-            if not out.flags.c_contiguous or not out.flags.writeable or np.shares_memory(out, z3):
-                raise ValueError("out must be C-contiguous, writeable and not overlap z")
+            if not planes_layout_ok(out) or not out.flags.writeable or np.shares_memory(out, z3):
+                raise ValueError("out must be writeable, not overlap z, and C-contiguous or in the layout of abkit.empty_states")
             o = out
         res3 = np.empty((n_tracks, n_samples, self.m), dtype=z3.dtype) if return_residuals else None
         pf = np.empty((n_tracks, self.n, self.n))
         _abkit.kalman_run(
             z3, self.n, self.m, self.F.reshape(-1), self.H.reshape(-1), self.Q.reshape(-1), self.R.reshape(-1),
-            self.x0.reshape(-1), self.P0.reshape(-1), o.reshape((self.n, n_tracks, n_samples)), pf, res3,
+            self.x0.reshape(-1), self.P0.reshape(-1), planes_view(o, (self.n, n_tracks, n_samples)), pf, res3,
             None if threads is None else int(threads),
         )
         if n_samples:

@@ -1139,13 +1139,14 @@ pub fn run_batch_cols<T: IoFloat, const N: usize>(
         )));
     }
     let per = n_tracks * n_samples;
-    if states.len() != n_tracks || out.len() != N * per {
+    let out_len = out.len();
+    let planes = crate::planes::split(out, N, per);
+    let Some(planes) = planes.filter(|_| states.len() == n_tracks) else {
         return Err(Error::Shape(format!(
-            "state of {} tracks / output of {} elements for {N} x {n_tracks} x {n_samples}",
+            "state of {} tracks / output of {out_len} elements for {N} x {n_tracks} x {n_samples}",
             states.len(),
-            out.len()
         )));
-    }
+    };
     if let Some(r) = &resid {
         if r.len() != per * m {
             return Err(Error::Shape("residual buffer has the wrong size".into()));
@@ -1154,8 +1155,8 @@ pub fn run_batch_cols<T: IoFloat, const N: usize>(
     if per == 0 {
         return Ok(());
     }
-    let mut comps: Vec<std::slice::ChunksExactMut<'_, T>> = out
-        .chunks_exact_mut(per)
+    let mut comps: Vec<std::slice::ChunksExactMut<'_, T>> = planes
+        .into_iter()
         .map(|c| c.chunks_exact_mut(n_samples))
         .collect();
     let mut resid_rows = resid.map(|r| r.chunks_exact_mut(n_samples * m));
@@ -2082,7 +2083,7 @@ fn ab_flat_batch<T: IoFloat>(
             && !(kind == FlatKernel::Avx2 && nt && aliased_rows::<T>(n)))
         || !rows_ok
         || states.len() != nt_
-        || out.len() != 2 * total
+        || crate::planes::stride::<T>(out.len(), 2, total).is_none()
     {
         return None;
     }
@@ -2110,7 +2111,7 @@ fn ab_flat_batch<T: IoFloat>(
         }
         None => false,
     };
-    let (xs, vs) = out.split_at_mut(total);
+    let (xs, vs) = crate::planes::split2(out, 2, total)?;
     // Results do not depend on the chunking.
     let per = row_chunk_tracks(nt_, n, parallel, 1);
     let shared = params.len() == 1;

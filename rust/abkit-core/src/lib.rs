@@ -28,6 +28,8 @@
 //! - [`kalman`]: the time-varying Kalman recursion (paper 002), batched.
 //! - [`irregular`]: gain laws for irregular sampling (the step model as a
 //!   function of `dt`: per-dt steady-state designs or fixed gains).
+//! - [`planes`]: the layout of the estimate buffers (component planes,
+//!   contiguous or each on its own cache-line phase).
 //! - [`ragged`]: the track kernel over ragged batches (Arrow offsets) with
 //!   optional timestamps, gaps and duplicates.
 //! - `ragged_simd` (x86-64): the vector lanes (AVX-512 / AVX2) of the
@@ -45,6 +47,7 @@ pub mod feed;
 pub mod filter;
 pub mod irregular;
 pub mod kalman;
+pub mod planes;
 pub mod ragged;
 #[cfg(target_arch = "x86_64")]
 pub mod ragged_simd;

@@ -483,7 +483,7 @@ pub fn filter_tracks<
             "state or count buffers do not match the tracks".into(),
         ));
     }
-    if out.len() != N * n_total {
+    if crate::planes::stride::<T>(out.len(), N, n_total).is_none() {
         return Err(Error::Shape("output buffer has the wrong size".into()));
     }
     if let Some(r) = &resid {
@@ -560,10 +560,8 @@ pub(crate) fn run_tracks<
     } else {
         plan_blocks(off, BLOCK_SAMPLES, 1)
     };
-    let mut rows: Vec<&mut [T]> = if n_total == 0 {
-        (0..N).map(|_| -> &mut [T] { &mut [] }).collect()
-    } else {
-        out.chunks_exact_mut(n_total).collect()
+    let Some(mut rows) = crate::planes::split(out, N, n_total) else {
+        return Err(Error::Shape("output buffer has the wrong size".into()));
     };
     let mut resid_rest = resid;
     let mut st_rest = states;
@@ -639,8 +637,7 @@ fn flat_tracks<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize,
         gains.push((opts.t_nominal, a, g));
     }
     let n_tracks = states.len();
-    let (xs, rest) = out.split_at_mut(n_total);
-    let vs = rest.get_mut(..n_total)?;
+    let (xs, vs) = crate::planes::split2(out, N, n_total)?;
     // Chunks of whole tracks (the unit of parallel work); results do not
     // depend on the chunking.
     let threads = if parallel {

@@ -118,6 +118,10 @@ fn run_split<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
 ) -> Result<()> {
     let n_tracks = off.len() - 1;
     let n_total = off[n_tracks];
+    // The plane stride of `out` (crate::planes).
+    let Some(ps) = crate::planes::stride::<T>(out.len(), N, n_total) else {
+        return Err(Error::Shape("output buffer has the wrong size".into()));
+    };
     let zat = |k: usize| z.data[z.addr(k) as usize].to_f64();
     let tat = |k: usize| t.data[t.addr(k) as usize];
     // The split layout: every track, the long ones as segments.
@@ -218,7 +222,7 @@ fn run_split<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
             let guess = &sp.guess[j];
             if !(prev.phase == 2.0 && prev.t_last.to_bits() == guess.t_last.to_bits()) {
                 // Not what the guess assumed: this segment again, in order.
-                let (st, ct) = rerun(&filt2, q, opts, z, t, g0, g1, prev, out, n_total)?;
+                let (st, ct) = rerun(&filt2, q, opts, z, t, g0, g1, prev, out, ps)?;
                 new_states[q] = st;
                 new_counts[q] = ct;
                 continue;
@@ -261,9 +265,9 @@ fn run_split<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
                     d1 -= g * dp;
                 }
                 let xn = out[k].to_f64() + d0;
-                let vn = out[n_total + k].to_f64() + d1;
+                let vn = out[ps + k].to_f64() + d1;
                 out[k] = T::from_f64(xn);
-                out[n_total + k] = T::from_f64(vn);
+                out[ps + k] = T::from_f64(vn);
                 if d0.abs() + (d1 * dt).abs() <= tiny * (xn.abs() + (vn * dt).abs()) {
                     d0 = 0.0;
                     d1 = 0.0;
@@ -296,7 +300,7 @@ fn law_of<'f, L: Clone, const N: usize, const M: usize>(
 
 /// Samples `g0..g1` (one segment, new track `q` of `filt2`) again from the
 /// state `st`, in order; writes their outputs, returns the end state and
-/// counts.
+/// counts (`plane`: the plane stride of `out`).
 #[allow(clippy::too_many_arguments)]
 fn rerun<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     filt2: &TrackFilter<'_, L, N, M>,
@@ -308,7 +312,7 @@ fn rerun<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     g1: usize,
     st: TrackState,
     out: &mut [T],
-    n_total: usize,
+    plane: usize,
 ) -> Result<(TrackState, Counts)> {
     let len = g1 - g0;
     // The segment lies inside one row: a flat view of it.
@@ -352,7 +356,7 @@ fn rerun<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
         &NoPost,
     )?;
     for comp in 0..N {
-        out[comp * n_total + g0..comp * n_total + g1]
+        out[comp * plane + g0..comp * plane + g1]
             .copy_from_slice(&buf[comp * len..(comp + 1) * len]);
     }
     Ok((s[0], c[0]))

@@ -56,6 +56,49 @@ pub(crate) fn opt_slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
     Ok(a.as_mut().map(|r| r.as_slice_mut()).transpose()?)
 }
 
+/// The estimate buffer `out` (component planes on axis 0, each plane
+/// C-contiguous) as one slice from its first element to its last: the
+/// planes back to back, or at a larger plane stride (the padded layout of
+/// `abkit_core::planes`, which the kernels recognise by the slice's length
+/// and check). The padding between planes is inside the slice but never
+/// read or written.
+pub(crate) fn planes_slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    rw: &'a mut numpy::PyReadwriteArray<'_, T, D>,
+) -> PyResult<&'a mut [T]> {
+    if rw.is_c_contiguous() {
+        return Ok(rw.as_slice_mut()?);
+    }
+    let shape = rw.shape().to_vec();
+    let strides = rw.strides().to_vec();
+    if shape.contains(&0) {
+        return Ok(&mut []);
+    }
+    let size = std::mem::size_of::<T>() as isize;
+    let mut want = size;
+    for k in (1..shape.len()).rev() {
+        if shape[k] > 1 && strides[k] != want {
+            return Err(PyValueError::new_err(
+                "out: each component plane out[i] must be C-contiguous",
+            ));
+        }
+        want *= shape[k] as isize;
+    }
+    let per: usize = shape[1..].iter().product();
+    let s0 = strides.first().copied().unwrap_or(want);
+    if shape[0] > 1 && (s0 < want || s0 % size != 0) {
+        return Err(PyValueError::new_err(
+            "out: the component planes must follow each other in memory, each whole",
+        ));
+    }
+    let span = (shape[0] - 1) * (s0 / size) as usize + per;
+    let ptr = rw.as_array_mut().as_mut_ptr();
+    // SAFETY: the planes lie at `ptr + i * s0` (i < shape[0]), each `per`
+    // contiguous elements (checked above), so [ptr, ptr + span) is inside
+    // the array's memory; the read-write borrow makes it exclusive, and
+    // the slice's lifetime is that of the borrow.
+    Ok(unsafe { std::slice::from_raw_parts_mut(ptr, span) })
+}
+
 /// Run `f`, turning a Rust panic (a bug in abkit, never expected) into a
 /// Python `RuntimeError` instead of letting it cross into Python.
 pub(crate) fn guard<T>(f: impl FnOnce() -> T) -> PyResult<T> {

@@ -167,7 +167,7 @@ fn run_typed<'py, T: IoFloat + Element>(
     let view = z.as_array();
     let meas = measurements(&view);
     let mut out_rw = bufs.out.readwrite();
-    let out = out_rw.as_slice_mut()?;
+    let out = crate::convert::planes_slice(&mut out_rw)?;
     let mut resid_rw = bufs.resid.as_ref().map(|r| r.readwrite());
     let resid = opt_slice(&mut resid_rw)?;
     let mut st_rw = bufs.state.readwrite();

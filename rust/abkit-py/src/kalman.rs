@@ -114,7 +114,7 @@ fn run_typed<'py, T: IoFloat + Element, const N: usize, const M: usize>(
     let view = z.as_array();
     let meas: Measurements<'_, T> = measurements(&view);
     let mut out_rw = out.readwrite();
-    let o = out_rw.as_slice_mut()?;
+    let o = crate::convert::planes_slice(&mut out_rw)?;
     let mut resid_rw = resid.map(|r| r.readwrite());
     let r = opt_slice(&mut resid_rw)?;
     let mut pf_rw = p_final.readwrite();

@@ -181,7 +181,7 @@ fn run_typed<
     let tv = t.map(|t| t.as_array());
     let ts = tv.as_ref().map(t_samples);
     let mut out_rw = io.out.readwrite();
-    let out = out_rw.as_slice_mut()?;
+    let out = crate::convert::planes_slice(&mut out_rw)?;
     let mut resid_rw = io.resid.as_ref().map(|r| r.readwrite());
     let resid = opt_slice(&mut resid_rw)?;
     let mut st_rw = state.readwrite();
@@ -527,7 +527,7 @@ pub(crate) fn filter_tracks_f32_py<'py>(
     let zs = z_samples(&zv);
     let offsets = offsets.as_slice()?;
     let mut out_rw = out.readwrite();
-    let out = out_rw.as_slice_mut()?;
+    let out = crate::convert::planes_slice(&mut out_rw)?;
     let mut resid_rw = resid.as_ref().map(|r| r.readwrite());
     let resid = opt_slice(&mut resid_rw)?;
     let mut st_rw = state.readwrite();
