@@ -2,7 +2,8 @@
 
 Fresh results put each component plane on the same 64-byte line phase as
 the first (plane stride = plane size rounded up to 8 float64 / 16 float32
-elements); ``out=`` takes that layout or a C-contiguous array. Checked
+elements, then by more lines until the planes' rows in flight are 64 bytes
+apart modulo 4 KiB); ``out=`` takes that layout or a C-contiguous array. Checked
 here: the layout itself (strides, alignment), that the kernels write the
 same values into either layout as into a C-contiguous array (exactly: the
 same kernel runs; the values themselves are checked against independent
@@ -39,16 +40,56 @@ def _filters():
 SHAPES = [(3, 5), (7, 13), (101,), (1, 7), (16, 8), (999, 101), (3, 4999), (70_001,)]
 
 
-def _padded_out(shape, dtype, n):
+def _ref_stride(n, per, row, itemsize):
+    """The padded layout's plane stride by its definition, brute force: the
+    first whole number of 64-byte lines from ``per`` on at which every row
+    in flight (up to 4 rows of each plane) starts at least 64 bytes (modulo
+    4 KiB) from every other plane's, else the best separated within 64
+    lines of padding; planes under 64 KiB rounded up to a line only."""
+    line = 64 // itemsize
+    base = -(-per // line) * line
+    if n < 2 or per * itemsize < 65536:  # small planes: rounded up only
+        return base
+    rows = 1 if row == 0 else min(max(per // row, 1), 4)
+    best = (-1, base)
+    for k in range(64):
+        s = base + k * line
+        starts = [[(c * s + j * row) * itemsize % 4096 for j in range(rows)] for c in range(n)]
+        sep = min(
+            min((a - b) % 4096, (b - a) % 4096)
+            for c1 in range(n) for c2 in range(c1 + 1, n) for a in starts[c1] for b in starts[c2]
+        )
+        if sep >= 64:
+            return s
+        if sep > best[0]:
+            best = (sep, s)
+    return best[1]
+
+
+def _padded_out(shape, dtype, n, flat=False):
     """The padded layout built here independently of abkit (a buffer of
     sentinels), with the buffer for checking the padding."""
     dt = np.dtype(dtype)
-    line = 64 // dt.itemsize
     per = int(np.prod(shape))
-    pad = -(-per // line) * line
+    pad = _ref_stride(n, per, 0 if flat else shape[-1], dt.itemsize)
     buf = np.full((n - 1) * pad + per, SENTINEL, dtype=dt)
     o = np.lib.stride_tricks.as_strided(buf, (n,) + shape, (pad * dt.itemsize,) + tuple(int(np.prod(shape[k + 1 :])) * dt.itemsize for k in range(len(shape))))
     return o, buf, per, pad
+
+
+@pytest.mark.parametrize("itemsize", [4, 8])
+@pytest.mark.parametrize("n", [2, 3, 6])
+def test_plane_stride_matches_its_definition(n, itemsize):
+    """The Rust rule (abkit_core::planes::padded_stride) against the brute
+    force above, over plane sizes and rows around the measured collisions."""
+    from abkit import _abkit
+
+    rng = np.random.default_rng(n * itemsize)
+    cases = [(999 * 10_004, 10_004), (1000 * 10_000, 10_000), (99_999 * 101, 101), (13, 13), (1024, 0), (1 << 16, 0), (16_383, 1), (16_384, 1), (0, 0), (5, 1)]
+    cases += [(int(nt) * int(ns), int(ns)) for nt, ns in zip(rng.integers(1, 3000, 40), rng.integers(1, 5000, 40))]
+    cases += [(int(p), 0) for p in rng.integers(1, 10**7, 20)]
+    for per, row in cases:
+        assert _abkit.plane_stride(n, per, row, itemsize) == _ref_stride(n, per, row, itemsize), (n, per, row, itemsize)
 
 
 def _padding_untouched(buf, n, per, pad):
@@ -74,11 +115,14 @@ def test_fresh_results_are_in_the_padded_layout(shape, dtype):
     per = int(np.prod(shape))
     assert s.shape == (2,) + shape and s.dtype == dtype
     assert all(s[c].flags.c_contiguous for c in range(2))
-    assert s.strides[0] == -(-per // line) * line * isz
-    assert s.strides[0] % 64 == 0 or s.flags.c_contiguous
-    assert s.flags.c_contiguous == (per % line == 0)
-    if per % line:
+    stride = _ref_stride(2, per, shape[-1], isz)
+    assert stride >= per and stride % line == 0 and stride - per < line + 64 * line
+    assert s.strides[0] == stride * isz
+    assert s.flags.c_contiguous == (stride == per)
+    if not s.flags.c_contiguous:
         assert s.ctypes.data % 64 == 0  # the first plane on a line boundary
+    rr = f.run(_z(shape, dtype).reshape(-1), offsets=[0, per // 2, per]).states
+    assert rr.strides[0] == _ref_stride(2, per, 0, isz) * isz
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -110,15 +154,17 @@ def test_ragged_layouts(name, dtype):
     z = _z((12_347,), dtype)
     off = np.array([0, 5, 1000, 1003, 12_347])
     ref = f.run(z, offsets=off, out=np.empty((f.n, z.size), dtype)).states
-    o, buf, per, pad = _padded_out(z.shape, dtype, f.n)
+    o, buf, per, pad = _padded_out(z.shape, dtype, f.n, flat=True)
     r = f.run(z, offsets=off, out=o)
     np.testing.assert_array_equal(r.states, ref)
     np.testing.assert_array_equal(f.run(z, offsets=off).states, ref)
     assert _padding_untouched(buf, f.n, per, pad)
+    e = abkit.empty_states((f.n, z.size), dtype, ragged=True)
+    np.testing.assert_array_equal(f.run(z, offsets=off, out=e).states, ref)
     if name in ("ab", "abg"):  # timestamps (the time-varying design laws)
         t = np.cumsum(np.random.default_rng(1).uniform(0.8, 1.2, z.size))
         ref_t = f.run(z, t=t, offsets=off, out=np.empty((f.n, z.size), dtype)).states
-        o, buf, per, pad = _padded_out(z.shape, dtype, f.n)
+        o, buf, per, pad = _padded_out(z.shape, dtype, f.n, flat=True)
         np.testing.assert_array_equal(f.run(z, t=t, offsets=off, out=o).states, ref_t)
         assert _padding_untouched(buf, f.n, per, pad)
         np.testing.assert_array_equal(f.run(z, t=t, offsets=off).states, ref_t)
@@ -132,7 +178,7 @@ def test_single_long_track_split_with_timestamps():
     t = np.cumsum(np.random.default_rng(2).uniform(0.8, 1.2, z.size))
     off = np.array([0, z.size])
     ref = f.run(z, t=t, offsets=off, out=np.empty((2, z.size))).states
-    o, buf, per, pad = _padded_out(z.shape, np.float64, 2)
+    o, buf, per, pad = _padded_out(z.shape, np.float64, 2, flat=True)
     np.testing.assert_array_equal(f.run(z, t=t, offsets=off, out=o).states, ref)
     assert _padding_untouched(buf, 2, per, pad)
 

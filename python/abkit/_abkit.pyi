@@ -25,6 +25,7 @@ __all__ = [
     "alphabeta_from_tracking_index",
     "filter_alphabeta",
     "filter_fixed_gain",
+    "plane_stride",
     "prefault",
     "kalman_gain_sequence",
     "kalman_run",
@@ -129,6 +130,7 @@ def filter_feed(
     resid: _FArr | None = None,
     threads: int | None = None,
 ) -> None: ...
+def plane_stride(n: int, per: int, row: int, itemsize: int) -> int: ...
 def prefault(buf: npt.NDArray[np.uint8], threads: int | None = None) -> None: ...
 def time_order(t: _F64, threads: int | None = None) -> npt.NDArray[np.int64]: ...
 def filter_tracks(

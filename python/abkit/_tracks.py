@@ -258,7 +258,7 @@ def run_tracks(
     packed, init_mode = f._initial_state(init, state, n_tracks)
     zarr = z
     shape = sample_shape
-    o = f._out(out, zarr, z3, shape, threads)
+    o = f._out(out, zarr, z3, shape, threads, flat=True)
     out2 = planes_view(o, (f.n, n_total))
     res2 = np.empty((n_total, m), dtype=z3.dtype) if return_residuals else None
     counts = np.zeros((n_tracks, 2), dtype=np.int64)

@@ -222,19 +222,23 @@ def _line_elems(dtype: np.dtype) -> int:
     return max(1, 64 // dtype.itemsize)
 
 
-def _padded(per: int, dtype: np.dtype) -> int:
-    """``per`` rounded up to whole 64-byte lines (the padded plane stride)."""
-    line = _line_elems(dtype)
-    return -(-per // line) * line
+def _plane_stride(shape: Tuple[int, ...], dtype: np.dtype, flat: bool) -> int:
+    """The padded layout's plane stride (elements) of an estimate array of
+    ``shape``: rows of ``shape[-1]`` samples, or one flat sequence per plane
+    (``flat``: the ragged kernel's outputs). One definition, in Rust
+    (``abkit_core::planes::padded_stride``)."""
+    per = int(np.prod(shape[1:], dtype=np.int64))
+    row = 0 if flat else int(shape[-1])
+    return int(_abkit.plane_stride(int(shape[0]), per, row, dtype.itemsize))
 
 
-def _empty_planes(shape: Tuple[int, ...], dtype: Any) -> Tuple[np.ndarray, np.ndarray]:
+def _empty_planes(shape: Tuple[int, ...], dtype: Any, flat: bool = False) -> Tuple[np.ndarray, np.ndarray]:
     """An uninitialised ``shape`` array in the padded plane layout, and the
     buffer it views (see :func:`empty_states`)."""
     dt = np.dtype(dtype)
     shape = tuple(int(d) for d in shape)
     n, per = shape[0], int(np.prod(shape[1:], dtype=np.int64))
-    pad = _padded(per, dt)
+    pad = _plane_stride(shape, dt, flat)
     if n < 2 or pad == per:
         o = np.empty(shape, dtype=dt)
         return o, o
@@ -247,35 +251,51 @@ def _empty_planes(shape: Tuple[int, ...], dtype: Any) -> Tuple[np.ndarray, np.nd
     return o, buf
 
 
-def empty_states(shape: Tuple[int, ...], dtype: Any = np.float64) -> np.ndarray:
+def empty_states(shape: Tuple[int, ...], dtype: Any = np.float64, *, ragged: bool = False) -> np.ndarray:
     """A new, uninitialised estimate array for ``out=``, in the layout of
     abkit's own results.
 
     Parameters
     ----------
     shape : tuple of int
-        ``(n_states,) + z.shape[:k]``: the shape of a result's ``.states``
+        ``(n_states,) + sample_shape``: the shape of a result's ``.states``
         (for example ``(2, n_tracks, n_samples)`` for alpha-beta).
     dtype : float32 or float64
         The measurements' dtype.
+    ragged : bool, optional
+        For ``run``/``smooth`` with ``offsets=`` (the ragged kernel, whose
+        planes are one flat sequence each); default ``False``: rectangular
+        batches, rows of ``shape[-1]`` samples.
 
     Returns
     -------
     numpy.ndarray
         An array of ``shape`` whose component planes ``a[i]`` are each
         C-contiguous and each start at the same phase of a 64-byte cache
-        line as ``a[0]`` (the plane stride is the plane's size rounded up to
-        whole lines; a C-contiguous array when that is the size itself).
+        line as ``a[0]``, at a plane stride of the plane's size rounded up
+        to whole lines and then, for planes of 64 KiB or more and if need
+        be, by a few more lines (less than 4 KiB in all) that keep the
+        planes' rows written at once apart modulo 4 KiB; a C-contiguous array when that stride is the plane's
+        size itself.
+
+    Raises
+    ------
+    TypeError
+        ``dtype`` is not float32 or float64.
+    ValueError
+        ``shape`` is not a tuple of at least two non-negative integers.
 
     Notes
     -----
     The kernels stream the position plane from a cache-line boundary; the
     other planes are streamed too only when they share its line phase, which
     a C-contiguous ``(n_states, n_tracks, n_samples)`` array gives only when
-    ``n_tracks * n_samples`` is a multiple of 8 (float64) or 16 (float32).
-    Off it, filtering runs 25-120 % slower (``docs/benchmarks.md``). Every
-    fresh result uses this layout; ``out=`` accepts it (so a result's
-    ``.states`` can be passed back) as well as any C-contiguous array.
+    ``n_tracks * n_samples`` is a multiple of 8 (float64) or 16 (float32);
+    off it, filtering ran 25-120 % slower. Planes whose rows in flight fall
+    within 32 bytes of each other modulo 4 KiB ran 1.1-2.2x slower
+    (``docs/benchmarks.md``, sessions 35 and 36). Every fresh result uses
+    this layout; ``out=`` accepts it (so a result's ``.states`` can be
+    passed back) as well as any C-contiguous array.
 
     Examples
     --------
@@ -296,18 +316,17 @@ def empty_states(shape: Tuple[int, ...], dtype: Any = np.float64) -> np.ndarray:
         raise TypeError(f"dtype must be float32 or float64, got {dt}")
     if not isinstance(shape, tuple) or len(shape) < 2 or any(isinstance(d, bool) or not isinstance(d, (int, np.integer)) or d < 0 for d in shape):
         raise ValueError(f"shape must be a tuple (n_states, ...) of at least two non-negative integers, got {shape!r}")
-    return _empty_planes(shape, dt)[0]
+    return _empty_planes(shape, dt, bool(ragged))[0]
 
 
-def planes_layout_ok(out: np.ndarray) -> bool:
+def planes_layout_ok(out: np.ndarray, flat: bool = False) -> bool:
     """Whether ``out`` has a layout the kernels write: C-contiguous, or the
-    padded plane layout of :func:`empty_states`."""
+    padded plane layout of :func:`empty_states` (``flat``: its ``ragged``)."""
     if out.flags.c_contiguous:
         return True
     if out.ndim < 2 or out.shape[0] < 2 or 0 in out.shape or not out[0].flags.c_contiguous:
         return False
-    per = int(np.prod(out.shape[1:], dtype=np.int64))
-    return out.strides[0] == _padded(per, out.dtype) * out.itemsize
+    return out.strides[0] == _plane_stride(out.shape, out.dtype, flat) * out.itemsize
 
 
 def planes_view(o: np.ndarray, shape: Tuple[int, ...]) -> np.ndarray:
@@ -319,9 +338,9 @@ def planes_view(o: np.ndarray, shape: Tuple[int, ...]) -> np.ndarray:
     return v
 
 
-def fresh_output(shape: Tuple[int, ...], dtype: Any, threads: Optional[int] = None) -> np.ndarray:
+def fresh_output(shape: Tuple[int, ...], dtype: Any, threads: Optional[int] = None, flat: bool = False) -> np.ndarray:
     """A new output array for the kernels, in the padded plane layout of
-    :func:`empty_states`. Big outputs are written by the
+    :func:`empty_states` (``flat``: its ``ragged``). Big outputs are written by the
     kernels with non-temporal stores, which are slow on pages that are not
     mapped yet (every first touch of a page is a fault in the middle of a
     streamed line): those pages are faulted in first, by touching one byte
@@ -329,7 +348,7 @@ def fresh_output(shape: Tuple[int, ...], dtype: Any, threads: Optional[int] = No
     on rayon's pool with the call's ``threads`` (the kernel zeroing the new
     pages is the cost, and it runs on every core), so filtering without
     ``out=`` costs filtering with ``out=`` plus the allocation."""
-    o, buf = _empty_planes(shape, dtype)
+    o, buf = _empty_planes(shape, dtype, flat)
     if buf.nbytes >= _PREFAULT_BYTES:
         _abkit.prefault(buf.reshape(-1).view(np.uint8), threads)
     return o
@@ -574,16 +593,17 @@ class FixedGainFilter:
         if self.n_params not in (1, n_tracks):
             raise ValueError(f"the filter has {self.n_params} per-track parameter sets but z has {n_tracks} tracks")
 
-    def _out(self, out: Any, z: np.ndarray, z3: np.ndarray, shape: Tuple[int, ...], threads: Optional[int] = None) -> np.ndarray:
+    def _out(self, out: Any, z: np.ndarray, z3: np.ndarray, shape: Tuple[int, ...], threads: Optional[int] = None, flat: bool = False) -> np.ndarray:
         want = (self.n,) + shape
         if out is None:
-            return fresh_output(want, z.dtype, threads)
+            return fresh_output(want, z.dtype, threads, flat)
         if not isinstance(out, np.ndarray):
             raise TypeError(f"out must be a numpy array, got {type(out).__name__}")
         if out.shape != want or out.dtype != z.dtype:
             raise ValueError(f"out must have shape {want} and dtype {z.dtype}, got {out.shape} {out.dtype}")
-        if not planes_layout_ok(out) or not out.flags.writeable:
-            raise ValueError("out must be writeable and C-contiguous or in the layout of abkit.empty_states (a result's .states)")
+        if not planes_layout_ok(out, flat) or not out.flags.writeable:
+            how = "abkit.empty_states(shape, dtype, ragged=True) (a ragged result's .states)" if flat else "abkit.empty_states (a result's .states)"
+            raise ValueError(f"out must be writeable and C-contiguous or in the layout of {how}")
         if np.shares_memory(out, z):
             raise ValueError("out overlaps z")
         return out

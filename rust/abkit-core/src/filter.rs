@@ -1140,7 +1140,7 @@ pub fn run_batch_cols<T: IoFloat, const N: usize>(
     }
     let per = n_tracks * n_samples;
     let out_len = out.len();
-    let planes = crate::planes::split(out, N, per);
+    let planes = crate::planes::split(out, N, per, n_samples);
     let Some(planes) = planes.filter(|_| states.len() == n_tracks) else {
         return Err(Error::Shape(format!(
             "state of {} tracks / output of {out_len} elements for {N} x {n_tracks} x {n_samples}",
@@ -2083,7 +2083,7 @@ fn ab_flat_batch<T: IoFloat>(
             && !(kind == FlatKernel::Avx2 && nt && aliased_rows::<T>(n)))
         || !rows_ok
         || states.len() != nt_
-        || crate::planes::stride::<T>(out.len(), 2, total).is_none()
+        || crate::planes::stride::<T>(out.len(), 2, total, n).is_none()
     {
         return None;
     }
@@ -2111,7 +2111,7 @@ fn ab_flat_batch<T: IoFloat>(
         }
         None => false,
     };
-    let (xs, vs) = crate::planes::split2(out, 2, total)?;
+    let (xs, vs) = crate::planes::split2(out, 2, total, n)?;
     // Results do not depend on the chunking.
     let per = row_chunk_tracks(nt_, n, parallel, 1);
     let shared = params.len() == 1;

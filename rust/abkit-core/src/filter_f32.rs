@@ -619,12 +619,12 @@ fn short_batch(
         || z.s_sample != 1
         || !(z.s_track == n as isize || n_tracks == 1)
         || states.len() != n_tracks
-        || crate::planes::stride::<f32>(out.len(), 2, total).is_none()
+        || crate::planes::stride::<f32>(out.len(), 2, total, n).is_none()
     {
         return None;
     }
     let zs = z.data.get(z.base..z.base.checked_add(total)?)?;
-    let (xs, vs) = crate::planes::split2(out, 2, total)?;
+    let (xs, vs) = crate::planes::split2(out, 2, total, n)?;
     // Chunks of whole tracks (the unit of parallel work), in whole groups.
     let per = super::row_chunk_tracks(n_tracks, n, parallel, LANES);
     let run = |j0: usize, st: &mut [TrackState], xs: &mut [f32], vs: &mut [f32]| {
@@ -907,7 +907,7 @@ pub fn filter_ab_f32_tracks<'a>(
     }
     super::check_ab_params(params)?;
     check_f32(params)?;
-    if crate::planes::stride::<f32>(out.len(), 2, n_total).is_none()
+    if crate::planes::stride::<f32>(out.len(), 2, n_total, 0).is_none()
         || resid.as_ref().is_some_and(|r| r.len() != n_total)
     {
         return Err(Error::Shape(format!(
@@ -930,7 +930,7 @@ pub fn filter_ab_f32_tracks<'a>(
         flat,
     };
     let nt = super::streamed::<f32>(2 * n_total * 4, true);
-    let Some((xs, vs)) = crate::planes::split2(out, 2, n_total) else {
+    let Some((xs, vs)) = crate::planes::split2(out, 2, n_total, 0) else {
         return Err(Error::Shape("output planes".into()));
     };
     let threads = if parallel {

@@ -483,7 +483,7 @@ pub fn filter_tracks<
             "state or count buffers do not match the tracks".into(),
         ));
     }
-    if crate::planes::stride::<T>(out.len(), N, n_total).is_none() {
+    if crate::planes::stride::<T>(out.len(), N, n_total, 0).is_none() {
         return Err(Error::Shape("output buffer has the wrong size".into()));
     }
     if let Some(r) = &resid {
@@ -560,7 +560,7 @@ pub(crate) fn run_tracks<
     } else {
         plan_blocks(off, BLOCK_SAMPLES, 1)
     };
-    let Some(mut rows) = crate::planes::split(out, N, n_total) else {
+    let Some(mut rows) = crate::planes::split(out, N, n_total, 0) else {
         return Err(Error::Shape("output buffer has the wrong size".into()));
     };
     let mut resid_rest = resid;
@@ -637,7 +637,7 @@ fn flat_tracks<T: IoFloat, L: GainLaw<N, M>, P: PostTrack<T, N>, const N: usize,
         gains.push((opts.t_nominal, a, g));
     }
     let n_tracks = states.len();
-    let (xs, vs) = crate::planes::split2(out, N, n_total)?;
+    let (xs, vs) = crate::planes::split2(out, N, n_total, 0)?;
     // Chunks of whole tracks (the unit of parallel work); results do not
     // depend on the chunking.
     let threads = if parallel {

@@ -119,7 +119,7 @@ fn run_split<T: IoFloat, L: GainLaw<N, M>, const N: usize, const M: usize>(
     let n_tracks = off.len() - 1;
     let n_total = off[n_tracks];
     // The plane stride of `out` (crate::planes).
-    let Some(ps) = crate::planes::stride::<T>(out.len(), N, n_total) else {
+    let Some(ps) = crate::planes::stride::<T>(out.len(), N, n_total, 0) else {
         return Err(Error::Shape("output buffer has the wrong size".into()));
     };
     let zat = |k: usize| z.data[z.addr(k) as usize].to_f64();

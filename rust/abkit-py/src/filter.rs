@@ -106,6 +106,20 @@ pub(crate) fn prefault<'py>(
     Ok(())
 }
 
+/// The plane stride (elements) of the padded output layout for `n` planes
+/// of `per` elements of `itemsize` bytes (4 or 8) in rows of `row` (`0`:
+/// flat): `abkit_core::planes::padded_stride`, the one definition the
+/// kernels check `out=` against.
+#[pyfunction]
+pub(crate) fn plane_stride(n: usize, per: usize, row: usize, itemsize: usize) -> PyResult<usize> {
+    let s = match itemsize {
+        8 => guard(|| abkit_core::planes::padded_stride::<f64>(n, per, row))?,
+        4 => guard(|| abkit_core::planes::padded_stride::<f32>(n, per, row))?,
+        _ => return Err(PyValueError::new_err("itemsize must be 4 or 8")),
+    };
+    s.ok_or_else(|| PyValueError::new_err("the output is too large"))
+}
+
 /// Release the GIL and run the kernel call `f(parallel)` per `threads` (see
 /// [`with_threads`]): a panic and the kernel's error become Python
 /// exceptions.

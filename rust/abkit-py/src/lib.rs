@@ -62,7 +62,7 @@ mod _abkit {
     #[pymodule_export]
     use super::feed::{filter_feed_py, time_order_py};
     #[pymodule_export]
-    use super::filter::{filter_alphabeta, filter_fixed_gain, prefault};
+    use super::filter::{filter_alphabeta, filter_fixed_gain, plane_stride, prefault};
     #[pymodule_export]
     use super::kalman::{kalman_gain_sequence, kalman_run};
     #[pymodule_export]
