@@ -1,9 +1,10 @@
 """The estimate arrays' layout (``abkit.empty_states``, ``out=``).
 
-Fresh results put each component plane on the same 64-byte line phase as
-the first (plane stride = plane size rounded up to 8 float64 / 16 float32
-elements, then by more lines until the planes' rows in flight are 64 bytes
-apart modulo 4 KiB); ``out=`` takes that layout or a C-contiguous array. Checked
+Fresh results of 8 MiB or more put each component plane on the same
+64-byte line phase as the first (plane stride = plane size rounded up to 8
+float64 / 16 float32 elements, then by more lines until the planes' rows
+in flight are 64 bytes apart modulo 4 KiB; smaller ones are C-contiguous);
+``out=`` takes that layout or a C-contiguous array. Checked
 here: the layout itself (strides, alignment), that the kernels write the
 same values into either layout as into a C-contiguous array (exactly: the
 same kernel runs; the values themselves are checked against independent
@@ -36,8 +37,9 @@ def _filters():
 
 
 # Plane sizes off and on the line (f64: 8 elements, f32: 16), single and
-# batched, long enough for the vector kernels and the streamed stores.
-SHAPES = [(3, 5), (7, 13), (101,), (1, 7), (16, 8), (999, 101), (3, 4999), (70_001,)]
+# batched: small ones (back to back, not streamed) and ones of 8 MiB and
+# more in all (padded, streamed stores; float32 too).
+SHAPES = [(3, 5), (7, 13), (101,), (16, 8), (999, 101), (1001, 1201), (1000, 1200), (701, 1999), (1_100_003,), (4, 300_001)]
 
 
 def _ref_stride(n, per, row, itemsize):
@@ -45,11 +47,11 @@ def _ref_stride(n, per, row, itemsize):
     first whole number of 64-byte lines from ``per`` on at which every row
     in flight (up to 4 rows of each plane) starts at least 64 bytes (modulo
     4 KiB) from every other plane's, else the best separated within 64
-    lines of padding; planes under 64 KiB rounded up to a line only."""
+    lines of padding; the planes back to back under 8 MiB in all."""
+    if n < 2 or n * per * itemsize < 8 << 20:  # not streamed: back to back
+        return per
     line = 64 // itemsize
     base = -(-per // line) * line
-    if n < 2 or per * itemsize < 65536:  # small planes: rounded up only
-        return base
     rows = 1 if row == 0 else min(max(per // row, 1), 4)
     best = (-1, base)
     for k in range(64):
@@ -85,7 +87,7 @@ def test_plane_stride_matches_its_definition(n, itemsize):
     from abkit import _abkit
 
     rng = np.random.default_rng(n * itemsize)
-    cases = [(999 * 10_004, 10_004), (1000 * 10_000, 10_000), (99_999 * 101, 101), (13, 13), (1024, 0), (1 << 16, 0), (16_383, 1), (16_384, 1), (0, 0), (5, 1)]
+    cases = [(999 * 10_004, 10_004), (1000 * 10_000, 10_000), (99_999 * 101, 101), (13, 13), (1024, 0), (1 << 20, 0), (699_049, 1), (699_051, 1), (0, 0), (5, 1)]
     cases += [(int(nt) * int(ns), int(ns)) for nt, ns in zip(rng.integers(1, 3000, 40), rng.integers(1, 5000, 40))]
     cases += [(int(p), 0) for p in rng.integers(1, 10**7, 20)]
     for per, row in cases:
@@ -116,7 +118,10 @@ def test_fresh_results_are_in_the_padded_layout(shape, dtype):
     assert s.shape == (2,) + shape and s.dtype == dtype
     assert all(s[c].flags.c_contiguous for c in range(2))
     stride = _ref_stride(2, per, shape[-1], isz)
-    assert stride >= per and stride % line == 0 and stride - per < line + 64 * line
+    if 2 * per * isz < 8 << 20:
+        assert stride == per  # not streamed: back to back
+    else:
+        assert stride % line == 0 and per <= stride < per + line + 64 * line
     assert s.strides[0] == stride * isz
     assert s.flags.c_contiguous == (stride == per)
     if not s.flags.c_contiguous:
@@ -151,8 +156,8 @@ def test_layouts_give_the_same_values_and_padding_is_untouched(name, shape, dtyp
 @pytest.mark.parametrize("name", ["ab", "abg", "general3", "ab_f32arith"])
 def test_ragged_layouts(name, dtype):
     f = _filters()[name]
-    z = _z((12_347,), dtype)
-    off = np.array([0, 5, 1000, 1003, 12_347])
+    z = _z((1_100_003,), dtype)
+    off = np.array([0, 5, 1000, 1003, 600_000, 1_100_003])
     ref = f.run(z, offsets=off, out=np.empty((f.n, z.size), dtype)).states
     o, buf, per, pad = _padded_out(z.shape, dtype, f.n, flat=True)
     r = f.run(z, offsets=off, out=o)
@@ -174,7 +179,7 @@ def test_single_long_track_split_with_timestamps():
     """A single long track with timestamps goes through the two-pass split
     (ragged_split), which writes its corrections by plane offset."""
     f = abkit.AlphaBetaFilter(0.5, 0.2, 1.0)
-    z = _z((400_003,), np.float64)
+    z = _z((600_003,), np.float64)
     t = np.cumsum(np.random.default_rng(2).uniform(0.8, 1.2, z.size))
     off = np.array([0, z.size])
     ref = f.run(z, t=t, offsets=off, out=np.empty((2, z.size))).states
@@ -188,10 +193,10 @@ def test_padded_layout_against_a_plain_loop():
     (two-point start), float64, 1e-12 relative to the data's scale."""
     a, b, T = 0.5, 0.2, 1.0
     f = abkit.AlphaBetaFilter(a, b, T)
-    z = _z((5, 13), np.float64, seed=3)
+    z = _z((1001, 1201), np.float64, seed=3)
     r = f.run(z)
     assert not r.states.flags.c_contiguous
-    for i in range(z.shape[0]):
+    for i in (0, 500, 1000):
         x = np.full((2, z.shape[1]), np.nan)
         valid = [k for k in range(z.shape[1]) if not np.isnan(z[i, k])]
         k1, k2 = valid[0], valid[1]
@@ -212,25 +217,27 @@ def test_padded_layout_against_a_plain_loop():
 
 def test_streaming_into_padded_outputs():
     f = abkit.AlphaBetaGammaFilter(0.5, 0.2, 0.02, 1.0)
-    z = _z((9, 2001), np.float64)
-    whole = f.run(z, out=np.empty((3, 9, 2001))).states
-    r1 = f.run(z[:, :1003])  # planes of 9,027 and 8,982 elements: both padded
-    r2 = f.run(z[:, 1003:], state=r1.state)
+    z = _z((1001, 1201), np.float64)
+    whole = f.run(z, out=np.empty((3, 1001, 1201))).states
+    r1 = f.run(z[:, :603])  # planes of 603,603 and 598,598 elements: both padded
+    r2 = f.run(z[:, 603:], state=r1.state)
     assert not r1.states.flags.c_contiguous and not r2.states.flags.c_contiguous
     np.testing.assert_array_equal(np.concatenate([r1.states, r2.states], axis=-1), whole)
 
 
 def test_smoother_and_kalman_layouts():
     ab = abkit.AlphaBetaFilter(0.5, 0.2, 1.0)
-    z = _z((7, 13), np.float64)
-    ref = ab.smooth(z, out=np.empty((2, 7, 13))).states
-    o, buf, per, pad = _padded_out((7, 13), np.float64, 2)
+    z = _z((700, 1301), np.float64)
+    ref = ab.smooth(z, out=np.empty((2, 700, 1301))).states
+    o, buf, per, pad = _padded_out((700, 1301), np.float64, 2)
+    assert pad > per
     np.testing.assert_array_equal(ab.smooth(z, out=o).states, ref)
     assert _padding_untouched(buf, 2, per, pad)
     np.testing.assert_array_equal(ab.smooth(z).states, ref)
     kf = abkit.KalmanFilter(PHI3, H3, 0.01 * np.eye(3), np.eye(1), P0=10 * np.eye(3))
-    ref = kf.run(z, out=np.empty((3, 7, 13))).states
-    o, buf, per, pad = _padded_out((7, 13), np.float64, 3)
+    ref = kf.run(z, out=np.empty((3, 700, 1301))).states
+    o, buf, per, pad = _padded_out((700, 1301), np.float64, 3)
+    assert pad > per
     np.testing.assert_array_equal(kf.run(z, out=o).states, ref)
     assert _padding_untouched(buf, 3, per, pad)
     fresh = kf.run(z)
@@ -272,3 +279,6 @@ def test_empty_states_validation():
     assert e.shape == (2, 0, 5) and e.dtype == np.float32
     e = abkit.empty_states((1, 7))
     assert e.flags.c_contiguous
+    assert abkit.empty_states((2, 7, 13)).flags.c_contiguous  # small: back to back
+    e = abkit.empty_states((2, 1001, 1201), np.float32)
+    assert not e.flags.c_contiguous and e.strides[0] % 64 == 0 and e[1].flags.c_contiguous

@@ -40,6 +40,7 @@ __all__ = [
     "SINGER_ROW_WIDTH",
     "STATE_WIDTH",
     "MAX_STATES",
+    "PAD_MIN_BYTES",
     "filter_tracks",
     "filter_tracks_f32",
     "filter_feed",
@@ -54,6 +55,7 @@ ABG_DECOUPLED_WIDTH: int
 ALPHABETA_FIELDS: list[str]
 STATE_WIDTH: int
 MAX_STATES: int
+PAD_MIN_BYTES: int
 SINGER_ROW_WIDTH: int
 
 _F64 = npt.NDArray[np.float64]

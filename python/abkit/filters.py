@@ -61,6 +61,7 @@ __all__ = [
 ]
 
 _W = int(_abkit.STATE_WIDTH)
+_PAD_MIN_BYTES = int(_abkit.PAD_MIN_BYTES)
 _NMAX = int(_abkit.MAX_STATES)
 # A fresh track's packed state: zeros, phase 0, no timestamps known (NaN).
 _FRESH = np.zeros(_W)
@@ -227,7 +228,7 @@ def _plane_stride(shape: Tuple[int, ...], dtype: np.dtype, flat: bool) -> int:
     ``shape``: rows of ``shape[-1]`` samples, or one flat sequence per plane
     (``flat``: the ragged kernel's outputs). One definition, in Rust
     (``abkit_core::planes::padded_stride``)."""
-    per = int(np.prod(shape[1:], dtype=np.int64))
+    per = math.prod(shape[1:])
     row = 0 if flat else int(shape[-1])
     return int(_abkit.plane_stride(int(shape[0]), per, row, dtype.itemsize))
 
@@ -237,16 +238,18 @@ def _empty_planes(shape: Tuple[int, ...], dtype: Any, flat: bool = False) -> Tup
     buffer it views (see :func:`empty_states`)."""
     dt = np.dtype(dtype)
     shape = tuple(int(d) for d in shape)
-    n, per = shape[0], int(np.prod(shape[1:], dtype=np.int64))
-    pad = _plane_stride(shape, dt, flat)
+    n, per = shape[0], math.prod(shape[1:])
+    # Below PAD_MIN_BYTES the stride is the plane size (padded_stride's
+    # first case), without the call.
+    pad = per if n * per * dt.itemsize < _PAD_MIN_BYTES else _plane_stride(shape, dt, flat)
     if n < 2 or pad == per:
         o = np.empty(shape, dtype=dt)
         return o, o
     line = _line_elems(dt)
     buf = np.empty((n - 1) * pad + per + line, dtype=dt)
     # Start the first plane on a 64-byte boundary (the others follow it).
-    skip = (-buf.ctypes.data // dt.itemsize) % line
-    inner = tuple(int(np.prod(shape[k + 1 :], dtype=np.int64)) * dt.itemsize for k in range(1, len(shape)))
+    skip = (-buf.__array_interface__["data"][0] // dt.itemsize) % line
+    inner = tuple(math.prod(shape[k + 1 :]) * dt.itemsize for k in range(1, len(shape)))
     o = np.ndarray(shape, dtype=dt, buffer=buf, offset=skip * dt.itemsize, strides=(pad * dt.itemsize,) + inner)
     return o, buf
 
@@ -271,12 +274,13 @@ def empty_states(shape: Tuple[int, ...], dtype: Any = np.float64, *, ragged: boo
     -------
     numpy.ndarray
         An array of ``shape`` whose component planes ``a[i]`` are each
-        C-contiguous and each start at the same phase of a 64-byte cache
-        line as ``a[0]``, at a plane stride of the plane's size rounded up
-        to whole lines and then, for planes of 64 KiB or more and if need
-        be, by a few more lines (less than 4 KiB in all) that keep the
-        planes' rows written at once apart modulo 4 KiB; a C-contiguous array when that stride is the plane's
-        size itself.
+        C-contiguous. Of 8 MiB or more (the size from which the kernels
+        stream their outputs past the caches), each plane starts at the
+        same phase of a 64-byte cache line as ``a[0]``: the plane stride is
+        the plane's size rounded up to whole lines and then, if need be,
+        by a few more lines (less than 4 KiB in all) that keep the planes'
+        rows written at once apart modulo 4 KiB. A C-contiguous array when
+        that stride is the plane's size itself, and below 8 MiB.
 
     Raises
     ------
@@ -301,15 +305,17 @@ def empty_states(shape: Tuple[int, ...], dtype: Any = np.float64, *, ragged: boo
     --------
     >>> import numpy as np, abkit
     >>> f = abkit.AlphaBetaFilter(0.5, 0.2, 1.0)
-    >>> z = np.arange(15.0).reshape(3, 5)
+    >>> z = np.zeros((999, 1001))  # planes of 999,999 float64 (8 MB each)
     >>> out = abkit.empty_states((2,) + z.shape)
-    >>> out.strides  # planes of 15 elements, 16 apart
-    (128, 40, 8)
+    >>> out.flags.c_contiguous, out[0].flags.c_contiguous, out[1].flags.c_contiguous
+    (False, True, True)
+    >>> out.strides[1:], out.strides[0] % 64, out.strides[0] > 999_999 * 8
+    ((8008, 8), 0, True)
     >>> r = f.run(z, out=out)
     >>> r.states is out
     True
-    >>> float(r.position[2, 4])
-    14.0
+    >>> abkit.empty_states((2, 3, 5)).flags.c_contiguous  # small: back to back
+    True
     """
     dt = np.dtype(dtype)
     if dt not in _ACCEPTED:

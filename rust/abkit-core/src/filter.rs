@@ -650,7 +650,7 @@ fn store_fence() {
 /// ones once the outputs outgrew the caches, e.g. 1,000 x 1,000 float64
 /// 3.1-3.4 -> 0.9 ns per sample, 20,000 x 100 4.0 -> 1.8-2.3;
 /// docs/benchmarks.md, session 10.)
-const NT_MIN_BYTES: usize = 8 << 20;
+pub(crate) const NT_MIN_BYTES: usize = 8 << 20;
 
 /// Rows at least this long run in the vector lanes (on shorter rows the
 /// scalar heads and tails cost more than the vector loop saves).

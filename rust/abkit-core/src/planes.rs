@@ -8,9 +8,9 @@
 //! - `per` (the planes back to back, a C-contiguous `(n, ...)` array), and
 //! - [`padded_stride`]`::<T>(n, per, row)`: `per` rounded up to whole
 //!   64-byte lines, so that every plane starts at the same phase of a cache
-//!   line as the first one, and then (planes of 64 KiB or more) by as many
-//!   more lines (fewer than a page) as it takes to keep the planes'
-//!   concurrently written rows apart modulo 4 KiB. The kernels stream the position plane from its own line
+//!   line as the first one, and then by as many more lines (fewer than a
+//!   page) as it takes to keep the planes' concurrently written rows apart
+//!   modulo 4 KiB; for buffers under 8 MiB (not streamed) `per` itself. The kernels stream the position plane from its own line
 //!   boundary; the other planes share those line boundaries only in this
 //!   layout, or when `per` is a multiple of a line. Off them, the other
 //!   planes take ordinary stores and whole batches ran 25-120 % slower
@@ -39,9 +39,11 @@ const ROW_STREAMS: usize = 4;
 /// slow, 64 and more not (session 36).
 const MIN_SEPARATION: usize = 64;
 
-/// Planes smaller than this (bytes) are only rounded up to a line: they
-/// stay in the caches, where the collisions were not seen.
-const SEPARATE_MIN_BYTES: usize = 1 << 16;
+/// Buffers (all planes) smaller than this (bytes) keep the planes back to
+/// back: the kernels stream no output below it (`filter::NT_MIN_BYTES`),
+/// so their planes' line phases do not matter, and the collisions were
+/// measured only on streamed outputs.
+pub const PAD_MIN_BYTES: usize = crate::filter::NT_MIN_BYTES;
 
 /// `per` rounded up to a whole number of 64-byte lines of `T`; `None` on
 /// overflow.
@@ -73,16 +75,16 @@ fn separation(d: usize, r: usize, n: usize, rows: usize) -> usize {
 /// flat sequence, as the ragged batches): the first whole number of lines
 /// from [`padded`]`(per)` on whose planes' rows in flight (up to
 /// `ROW_STREAMS` rows each) are at least `MIN_SEPARATION` bytes apart
-/// modulo 4 KiB, or the best separated within a page of padding; planes
-/// under `SEPARATE_MIN_BYTES` (64 KiB) only rounded up. `None` on
-/// overflow.
+/// modulo 4 KiB, or the best separated within a page of padding; `per`
+/// itself (the planes back to back) for buffers under `PAD_MIN_BYTES`
+/// (8 MiB) or a single plane. `None` on overflow.
 pub fn padded_stride<T>(n: usize, per: usize, row: usize) -> Option<usize> {
     let size = std::mem::size_of::<T>().max(1);
     let line = (LINE_BYTES / size).max(1);
-    let base = padded::<T>(per)?;
-    if n < 2 || per.saturating_mul(size) < SEPARATE_MIN_BYTES {
-        return Some(base);
+    if n < 2 || n.saturating_mul(per).saturating_mul(size) < PAD_MIN_BYTES {
+        return Some(per);
     }
+    let base = padded::<T>(per)?;
     let rows = per.checked_div(row).map_or(1, |r| r.clamp(1, ROW_STREAMS));
     let r = (row % PAGE_BYTES) * size % PAGE_BYTES;
     let mut best = (0, base);
@@ -205,7 +207,7 @@ mod tests {
             (2, 999, 10_004),
             (3, 1000, 10_000),
             (3, 99_999, 101),
-            (6, 700, 13),
+            (6, 70_000, 13),
             (3, 1, 1 << 20),
         ] {
             let s = padded_stride::<f64>(n, nt * ns, ns).unwrap();
@@ -214,13 +216,26 @@ mod tests {
             assert!(separation(s * 8 % PAGE_BYTES, ns * 8 % PAGE_BYTES, n, rows) >= MIN_SEPARATION);
         }
         // Flat (ragged) planes: whole lines, not a multiple of the page apart.
-        assert_eq!(padded_stride::<f32>(2, 13, 0), Some(16));
-        assert_eq!(padded_stride::<f64>(2, 1 << 16, 0), Some((1 << 16) + 8));
-        assert_eq!(padded_stride::<f64>(1, 13, 5), Some(16));
-        // Small planes (under 64 KiB): rounded up only.
-        assert_eq!(padded_stride::<f64>(2, 1024, 0), Some(1024));
-        assert_eq!(padded_stride::<f64>(2, 15, 5), Some(16));
-        assert_eq!(padded_stride::<f32>(3, 16_383, 1), Some(16_384));
+        assert_eq!(
+            padded_stride::<f32>(2, (1 << 20) + 13, 0),
+            Some((1 << 20) + 16)
+        );
+        assert_eq!(padded_stride::<f64>(2, 1 << 20, 0), Some((1 << 20) + 8));
+        // Buffers under 8 MiB and single planes: back to back.
+        assert_eq!(
+            padded_stride::<f64>(1, (1 << 20) + 13, 5),
+            Some((1 << 20) + 13)
+        );
+        assert_eq!(padded_stride::<f64>(2, 15, 5), Some(15));
+        assert_eq!(
+            padded_stride::<f64>(2, (1 << 19) - 1, 0),
+            Some((1 << 19) - 1)
+        );
+        assert_eq!(
+            padded_stride::<f64>(2, 1 << 19, 1 << 19),
+            Some((1 << 19) + 8)
+        );
+        assert_eq!(padded_stride::<f32>(3, 699_049, 1), Some(699_049));
     }
 
     #[test]
@@ -231,14 +246,17 @@ mod tests {
         assert_eq!(padded::<f32>(17), Some(32));
         assert_eq!(padded::<f64>(16), Some(16));
         assert_eq!(padded::<f64>(0), Some(0));
-        let p = padded_stride::<f64>(3, 13, 13).unwrap();
-        assert_eq!(p, 16);
+        let per = (1 << 20) + 13;
+        let p = padded_stride::<f64>(3, per, per).unwrap();
+        assert!(p > per && p.is_multiple_of(8));
+        assert_eq!(stride::<f64>(3 * per, 3, per, per), Some(per));
+        assert_eq!(stride::<f64>(2 * p + per, 3, per, per), Some(p));
+        assert_eq!(stride::<f64>(3 * p, 3, per, per), None);
+        assert_eq!(stride::<f64>(2 * (p + 8) + per, 3, per, per), None);
+        assert_eq!(stride::<f64>(3 * per + 1, 3, per, per), None);
+        assert_eq!(stride::<f64>(per, 1, per, per), Some(per));
         assert_eq!(stride::<f64>(3 * 13, 3, 13, 13), Some(13));
-        assert_eq!(stride::<f64>(2 * p + 13, 3, 13, 13), Some(p));
-        assert_eq!(stride::<f64>(3 * p, 3, 13, 13), None);
-        assert_eq!(stride::<f64>(2 * (p + 8) + 13, 3, 13, 13), None);
-        assert_eq!(stride::<f64>(3 * 13 + 1, 3, 13, 13), None);
-        assert_eq!(stride::<f64>(13, 1, 13, 13), Some(13));
+        assert_eq!(stride::<f64>(2 * 16 + 13, 3, 13, 13), None);
         assert_eq!(stride::<f64>(0, 2, 0, 0), Some(0));
         assert_eq!(stride::<f64>(0, 0, 5, 5), Some(5));
         assert_eq!(stride::<f64>(1, 0, 5, 5), None);
@@ -247,19 +265,22 @@ mod tests {
 
     #[test]
     fn planes_of_the_padded_layout() {
-        let mut buf: Vec<f64> = (0..(2 * 16 + 13)).map(f64::from).collect();
-        let p = split(&mut buf, 3, 13, 13).unwrap();
-        assert_eq!(p.len(), 3);
-        assert!(p.iter().all(|q| q.len() == 13));
+        let per = (1 << 20) + 13;
+        let p = padded_stride::<f64>(3, per, 0).unwrap();
+        let mut buf: Vec<f64> = (0..(2 * p + per)).map(|i| i as f64).collect();
+        let planes = split(&mut buf, 3, per, 0).unwrap();
+        assert_eq!(planes.len(), 3);
+        assert!(planes.iter().all(|q| q.len() == per));
+        let at = |c: usize| (c * p) as f64;
         assert_eq!(
-            (p[0][0], p[1][0], p[2][0], p[2][12]),
-            (0.0, 16.0, 32.0, 44.0)
+            (planes[0][0], planes[1][0], planes[2][0], planes[2][per - 1]),
+            (at(0), at(1), at(2), at(2) + (per - 1) as f64)
         );
-        let (x, v) = split2(&mut buf, 3, 13, 13).unwrap();
-        assert_eq!((x[12], v[0], v.len()), (12.0, 16.0, 13));
+        let (x, v) = split2(&mut buf, 3, per, 0).unwrap();
+        assert_eq!((x[per - 1], v[0], v.len()), ((per - 1) as f64, at(1), per));
         let mut flat: Vec<f64> = (0..26).map(f64::from).collect();
-        let p = split(&mut flat, 2, 13, 0).unwrap();
-        assert_eq!((p[0][12], p[1][0]), (12.0, 13.0));
+        let q = split(&mut flat, 2, 13, 0).unwrap();
+        assert_eq!((q[0][12], q[1][0]), (12.0, 13.0));
         assert!(split(&mut flat, 2, 12, 0).is_none());
         assert!(split2(&mut flat[..13], 1, 13, 0).is_none());
     }

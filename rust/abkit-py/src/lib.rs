@@ -84,6 +84,7 @@ mod _abkit {
         m.add("ALPHABETA_FIELDS", abkit_core::alphabeta::FIELDS.to_vec())?;
         m.add("STATE_WIDTH", super::filter::STATE_WIDTH)?;
         m.add("MAX_STATES", abkit_core::filter::MAX_STATES)?;
+        m.add("PAD_MIN_BYTES", abkit_core::planes::PAD_MIN_BYTES)?;
         m.add("SINGER_ROW_WIDTH", abkit_core::singer::ROW_WIDTH)?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))?;
         Ok(())
