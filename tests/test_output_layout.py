@@ -38,8 +38,9 @@ def _filters():
 
 # Plane sizes off and on the line (f64: 8 elements, f32: 16), single and
 # batched: small ones (back to back, not streamed) and ones of 8 MiB and
-# more in all (padded, streamed stores; float32 too).
-SHAPES = [(3, 5), (7, 13), (101,), (16, 8), (999, 101), (1001, 1201), (1000, 1200), (701, 1999), (1_100_003,), (4, 300_001)]
+# more in all (padded, streamed stores; float32 too; (601, 1501) float64
+# and (701, 1999) float32 3-state moved further by the 4 KiB rule).
+SHAPES = [(3, 5), (7, 13), (101,), (16, 8), (999, 101), (1001, 1201), (1000, 1200), (701, 1999), (601, 1501), (1_100_003,), (4, 300_001)]
 
 
 def _ref_stride(n, per, row, itemsize):
@@ -105,6 +106,16 @@ def _z(shape, dtype, seed=0):
     if z.shape[-1] > 6:
         z[..., 3:5] = np.nan  # missed detections
     return z
+
+
+@pytest.mark.parametrize("n", [2, 3])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_shapes_cover_both_layouts(dtype, n):
+    """The shape table exercises padded planes (off the lines and moved
+    by the 4 KiB rule) as well as back-to-back ones, for every dtype."""
+    isz = np.dtype(dtype).itemsize
+    pads = [_ref_stride(n, int(np.prod(s)), s[-1], isz) - int(np.prod(s)) for s in SHAPES]
+    assert sum(p > 0 for p in pads) >= 3 and sum(p == 0 for p in pads) >= 3, pads
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])

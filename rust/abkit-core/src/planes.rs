@@ -10,9 +10,10 @@
 //!   64-byte lines, so that every plane starts at the same phase of a cache
 //!   line as the first one, and then by as many more lines (fewer than a
 //!   page) as it takes to keep the planes' concurrently written rows apart
-//!   modulo 4 KiB; for buffers under 8 MiB (not streamed) `per` itself. The kernels stream the position plane from its own line
-//!   boundary; the other planes share those line boundaries only in this
-//!   layout, or when `per` is a multiple of a line. Off them, the other
+//!   modulo 4 KiB; for buffers under 8 MiB (not streamed) `per` itself.
+//!   The kernels stream the position plane from its own line boundary;
+//!   the other planes share those line boundaries only in this layout, or
+//!   when `per` is a multiple of a line. Off them, the other
 //!   planes take ordinary stores and whole batches ran 25-120 % slower
 //!   (docs/benchmarks.md, session 35, `bench/bench_layout.py`); on line
 //!   boundaries but with a plane `c * stride + j * row` elements (rows `j`
@@ -26,8 +27,8 @@
 /// Bytes of a cache line (the planes' alignment unit).
 pub const LINE_BYTES: usize = 64;
 
-/// The period of the address bits that make two streams collide (4 KiB
-/// aliasing of loads and stores, cache sets).
+/// The period of the address bits that make two streams collide (most
+/// likely 4 KiB aliasing or cache-set conflicts: measured, not diagnosed).
 const PAGE_BYTES: usize = 4096;
 
 /// Rows of one plane a kernel writes at once (its lanes) that the padded
@@ -35,8 +36,9 @@ const PAGE_BYTES: usize = 4096;
 const ROW_STREAMS: usize = 4;
 
 /// The separation (bytes, modulo [`PAGE_BYTES`]) the padded layout keeps
-/// between any two planes' rows in flight; 32 bytes and less measured
-/// slow, 64 and more not (session 36).
+/// between any two planes' rows in flight: every measured stride with 64
+/// or more ran fast, most with 32 or less 1.1-2.2x slower (session 36;
+/// one at 32 and one at 24 did not).
 const MIN_SEPARATION: usize = 64;
 
 /// Buffers (all planes) smaller than this (bytes) keep the planes back to
