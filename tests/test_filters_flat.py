@@ -264,6 +264,11 @@ for k, dt in enumerate([np.float64, np.float32]):
         z = rng.normal(size=(20000, 100)).cumsum(1).astype(dt)  # from memory
         z[rng.random(z.shape) < 0.01] = np.nan
         res[f"rows100{k}{init}"] = AlphaBetaFilter(0.4, 0.1, 0.5).run(z, init=init).states
+        # rows of 4 KiB / 8 (float64 rows of 128) from memory: the short-row
+        # lanes on AVX2-only CPUs, the flat kernel with ABKIT_SHORT_ROWS_FLAT=1
+        z = rng.normal(size=(12000, 128)).cumsum(1).astype(dt)
+        z[rng.random(z.shape) < 0.01] = np.nan
+        res[f"rows128{k}{init}"] = AlphaBetaFilter(0.4, 0.1, 0.5).run(z, init=init).states
         lens = rng.integers(0, 200, 700)
         off = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
         zr = rng.normal(size=int(off[-1])).cumsum().astype(dt) - 5.0

@@ -31,6 +31,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .wrapping_add(1442695040888963407);
         (s >> 11) as f64 / (1u64 << 53) as f64
     };
+    // RAGBENCH_ROUND=q: lengths rounded to multiples of q (at least q).
+    let round: usize = std::env::var("RAGBENCH_ROUND")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1)
+        .max(1);
     let mut off: Vec<i64> = vec![0];
     let mut n = 0usize;
     while n < total {
@@ -40,11 +46,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let (l0, l1) = ((lo as f64).log10(), (hi as f64).log10());
             10f64.powf(l0 + (l1 - l0) * r()).round() as usize
         };
-        let len = len.clamp(1, total - n);
+        let len = (len.div_ceil(round) * round).clamp(1, total - n);
         n += len;
         off.push(n as i64);
     }
-    let z: Vec<f64> = thp_vec(n, |i| i as f64 * 0.01 + r());
+    // RAGBENCH_ZSHIFT=s: z starts s samples into its allocation (moves z
+    // against the outputs modulo 4 KiB).
+    let zshift: usize = std::env::var("RAGBENCH_ZSHIFT")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0);
+    let zbuf: Vec<f64> = thp_vec(n + zshift, |i| i as f64 * 0.01 + r());
+    let z = &zbuf[zshift..];
     let laws = [AbFixed {
         alpha: 0.5,
         beta: 0.2,
@@ -64,7 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut st = thp_vec(n_tracks, |_| TrackState::default());
     let mut counts = vec![[0i64; 2]; n_tracks];
     let mut states = thp_vec(2 * n, |_| 0.0f64);
-    let zs = Samples::flat(&z, 1)?;
+    let zs = Samples::flat(z, 1)?;
     // Timestamps (optional): steps uniform in 0.05..0.15.
     let mut acc = 0.0;
     let t: Vec<f64> = thp_vec(n, |_| {

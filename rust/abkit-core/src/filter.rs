@@ -2104,7 +2104,8 @@ fn ab_flat_batch<T: IoFloat>(
         && !short_rows_flat()
         && (3 * total * std::mem::size_of::<T>() <= SHORT_ROWS_CACHED_BYTES
             || n <= SHORT_ROWS_MEM_MAX[usize::from(f64_)]
-            || (nt && !f64_));
+            || (nt && !f64_)
+            || (nt && cpu_kind == FlatKernel::Avx2 && page_rows::<T>(n)));
     let rows16 = match rows16_switch() {
         Some(on) => {
             on && cpu_kind == FlatKernel::Avx512 && simd::avx2_available() && n < SIMD_MIN_SAMPLES
@@ -2284,6 +2285,21 @@ fn run_row_chunks<T: Send>(
 fn aliased_rows<T>(n: usize) -> bool {
     n.checked_mul(std::mem::size_of::<T>())
         .is_some_and(|b| b.is_multiple_of(2048))
+}
+
+/// Whether rows of `n` samples of `T` are a whole fraction of 4 KiB (`f64`
+/// rows of 128, say): then every region of the flat kernel starts at the
+/// same offset modulo 4 KiB, so its slots' streams all agree modulo 4 KiB
+/// and no choice of region can spread them. With streamed outputs such
+/// rows run in the AVX2 short-row lanes on AVX2-only CPUs. Measured on an
+/// AMD EPYC (Zen 3), 10^7 `f64` samples in rows of 128, ns per sample,
+/// flat kernel -> short-row lanes: `rowbench` 2.2-3.0 -> 1.32-1.33; from
+/// Python with `abkit.empty_states` outputs 5.3-6.1 -> 1.5-1.85, with
+/// `np.empty` 2.2-2.8 -> 1.6-2.1 (docs/benchmarks.md, session 38).
+#[cfg(target_arch = "x86_64")]
+fn page_rows<T>(n: usize) -> bool {
+    let b = n.saturating_mul(std::mem::size_of::<T>());
+    b > 0 && 4096 % b == 0
 }
 
 /// Most bytes of `z` and outputs for which short rows run in the AVX2
